@@ -1,0 +1,309 @@
+"""The reference pipeline of ``pano2cad run``: composition of the packages, no algorithm.
+
+Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
+
+1. read and check the image (:mod:`apps.imageio`) at the working resolution
+2. line segments -> Manhattan vanishing points -> upright rotation R
+   (:func:`panogeom.rectify.estimate_rectification`)
+3. object detection on perspective tiles, boxes in the panorama, spherical
+   NMS, grab-cut masks (:mod:`detect`)
+4. surface labels: orientation map + geometric context, objects masked
+   (:mod:`layout.surfaces`)
+5. room geometry from the labels: Manhattan floor polygon and wall height,
+   metric under an assumed camera height (:mod:`layout.roomgeom`)
+6. object crops -> HOG -> k-NN against the model library's renders -> pose
+   CRF by TRW-S -> yaw and model per object (:mod:`posecrf`)
+7. initial objects -> MAP sampling of scale, positions and yaws under E_s,
+   E_o and the context prior (:mod:`layout.sampler`)
+
+Everything runs in the upright (rectified) frame; results are reported in
+the world frame of CONVENTIONS.md, with ``camera.rotation`` mapping the
+input camera's directions into it, and boxes and label maps mapped back to
+the input panorama's pixels.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from .errors import UserError
+from .progress import Progress
+
+DEFAULT_CAMERA_HEIGHT = 1.6
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """Options of :func:`run_pipeline` (the flags of ``pano2cad run``).
+
+    Attributes
+    ----------
+    camera_height : float or None
+        Metres; fixes the scale when given. None: the scale comes from the
+        objects' known sizes (falling back to 1.6 m without objects).
+    detector : str
+        ``builtin``, ``tflite``, ``onnx:FILE`` or ``annotations:FILE``.
+    samples : int
+        N_S, hypotheses of the MAP sampler (the paper: 8 x 25 = 200; Table 2: 3000).
+    seed : int
+        Seed of the sampler (the only randomness of the pipeline).
+    objects : bool
+        False: layout only.
+    sampler_mode : str
+        ``"improved"`` (default) or ``"paper"`` (the paper's exact scheme).
+    """
+
+    camera_height: float | None = None
+    detector: str = "builtin"
+    samples: int = 200
+    seed: int = 0
+    objects: bool = True
+    sampler_mode: str = "improved"
+
+
+@dataclass(frozen=True)
+class PipelineResult:
+    """Everything ``pano2cad run`` writes, in memory.
+
+    Attributes
+    ----------
+    scene : layout.scene.Scene
+        The room and objects in the world frame, with rotation and timings.
+    image : (H, W, 3) uint8
+        The input panorama at the working resolution.
+    labels_input : (H, W) uint8
+        Surface labels in the input panorama's pixel geometry.
+    detections : list of detect.detection.Detection
+        In the upright panorama.
+    warnings : tuple of str
+        What went less well (no vanishing points, uncertain layout, ...).
+    """
+
+    scene: Any
+    image: np.ndarray
+    labels_input: np.ndarray
+    detections: list
+    warnings: tuple[str, ...] = ()
+    extra: dict = field(default_factory=dict)
+
+
+def _rectify(image: np.ndarray, prog: Progress, notes: list[str]):
+    from panogeom.rectify import estimate_rectification
+    from panogeom.vanishing import VanishingPointError
+
+    try:
+        rect = estimate_rectification(image, mode="walls")
+    except VanishingPointError as exc:
+        notes.append(f"no Manhattan vanishing points ({exc}); the panorama is assumed upright as given")
+        return None, image
+    prog.say(f"  tilt {math.degrees(rect.tilt):.2f} deg, heading {math.degrees(rect.heading):.2f} deg")
+    return rect, rect.apply(image)
+
+
+def _detect(image: np.ndarray, upright: np.ndarray, rect, spec: str, prog: Progress) -> list:
+    """Detections in the upright panorama (boxes read from a file refer to the input: mapped)."""
+    from detect.backends import ModelFileError, get_detector
+    from detect.grabcut import segment_detections
+    from detect.tiles import detect_panorama
+
+    try:
+        detector = get_detector(spec)
+    except (ModelFileError, FileNotFoundError, ValueError) as exc:  # unknown spec, missing or broken model file
+        raise UserError(f"--detector {spec}: {exc}") from None
+    if spec.startswith("annotations:"):
+        H, W = image.shape[:2]
+        dets = detect_panorama(image, detector)
+        if rect is not None:
+            dets = [replace(d, box=tuple(float(b) for b in rect.box_to_rectified(d.box, W, H))) for d in dets]
+    else:
+        dets = detect_panorama(upright, detector)
+    if dets:
+        dets = segment_detections(upright, dets)
+    prog.say(f"  {len(dets)} objects: " + ", ".join(sorted({d.label for d in dets})))
+    return dets
+
+
+def _object_mask(dets: list, shape: tuple[int, int]) -> np.ndarray:
+    from layout.likelihood import boxes_mask
+
+    if not dets:
+        return np.zeros(shape, bool)
+    return boxes_mask(np.array([d.box for d in dets]), shape[1])
+
+
+_EO_BINS = np.arange(72) * (2.0 * np.pi / 72)
+
+
+def _poses(upright: np.ndarray, dets: list, prog: Progress) -> list:
+    """Per detection: (model, yaw in the upright frame or None, E_o table over 72 world-yaw bins or None)."""
+    from posecrf.crops import extract_crop, relative_yaw
+    from posecrf.library import builtin_library
+    from posecrf.pose import estimate_poses
+    from posecrf.render import PoseGrid, RenderSettings
+    from posecrf.cache import library_renders
+
+    lib = builtin_library()
+    renders = library_renders(lib, grid=PoseGrid(), settings=RenderSettings())
+    out: list = [None] * len(dets)
+    H, W = upright.shape[:2]
+    by_class: dict[str, list[int]] = {}
+    for i, d in enumerate(dets):
+        if lib.by_class(d.label):
+            by_class.setdefault(d.label, []).append(i)
+    for cls, idx in sorted(by_class.items()):
+        crops, masks, views = [], [], []
+        for i in idx:
+            crop, view = extract_crop(upright, dets[i].box)
+            crops.append(crop)
+            views.append(view)
+            masks.append(_crop_mask(dets[i], view, W, H) if dets[i].mask is not None else None)
+        use_masks = masks if all(m is not None for m in masks) else None
+        res = estimate_poses(renders, cls, crops, use_masks)
+        for i, view, est in zip(idx, views, res.estimates):
+            model = lib[est.model_id]
+            ray = view.direction
+            if est.yaw_rel is None:
+                out[i] = (model, None, None)
+                continue
+            yaw = float(est.world_yaw(ray))
+            # E_o over world-yaw bins (the sampler interpolates): the crop-relative grid seen along this ray.
+            rel = relative_yaw(_EO_BINS, ray, model.symmetry)
+            table = np.array([est.e_o_at(float(r), est.pitch, est.model_id) for r in rel])
+            out[i] = (model, yaw, table)
+    prog.say(f"  poses for {sum(o is not None for o in out)} of {len(dets)} objects")
+    return out
+
+
+def _crop_mask(det, view, width: int, height: int) -> np.ndarray:
+    """The detection's panorama mask seen in the crop's view (nearest sampling)."""
+    from panogeom.perspective import equirect_to_perspective
+
+    return equirect_to_perspective(det.mask.astype(np.uint8), view, interpolation="nearest") > 0
+
+
+def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | None = None) -> PipelineResult:
+    """Run the whole pipeline on an RGB panorama.
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8, W == 2*H
+        The panorama at the working resolution.
+    options : RunOptions
+    progress : Progress, optional
+
+    Returns
+    -------
+    PipelineResult
+    """
+    from layout.likelihood import observe_labels, surface_likelihood
+    from layout.roomgeom import RoomGeometryError, estimate_room_geometry
+    from layout.sampler import DetectedObject, PosteriorError, SamplerConfig, map_estimate
+    from layout.scene import Scene
+    from layout.surfaces import estimate_surfaces
+    from panogeom.transform import rotate_pano
+
+    prog = progress or Progress(quiet=True)
+    notes: list[str] = []
+    H, W = image.shape[:2]
+    h0 = options.camera_height or DEFAULT_CAMERA_HEIGHT
+
+    with prog.stage("rectify", "vanishing points and upright rotation"):
+        rect, upright = _rectify(image, prog, notes)
+    R = rect.rotation if rect is not None else np.eye(3)
+
+    dets: list = []
+    if options.objects:
+        with prog.stage("detect", f"object detection ({options.detector})"):
+            dets = _detect(image, upright, rect, options.detector, prog)
+    obj_mask = _object_mask(dets, (H, W))
+
+    with prog.stage("surfaces", "surface labels (orientation map + geometric context)"):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            surf = estimate_surfaces(upright, object_mask=obj_mask)
+        notes.extend(str(w.message) for w in caught)
+        notes.extend(surf.warnings)
+
+    with prog.stage("room", "room geometry from the labels"):
+        try:
+            geom = estimate_room_geometry(surf.labels, h0, object_mask=obj_mask)
+        except RoomGeometryError as exc:
+            raise UserError(f"no room layout could be found in this panorama ({exc})") from None
+        if geom.uncertain:
+            notes.append("uncertain layout: " + "; ".join(geom.reasons))
+
+    poses: list = []
+    if dets:
+        with prog.stage("pose", "object poses (HOG + pose CRF)"):
+            poses = _poses(upright, dets, prog)
+
+    objects, eo = [], []
+    for d, p in zip(dets, poses):
+        if p is None:
+            continue
+        model, yaw, e_o = p
+        objects.append(DetectedObject(d.label, d.box, model.size, 0.0 if yaw is None else yaw, model_id=model.id,
+                                      score=float(d.score), symmetric=yaw is None))
+        eo.append(e_o)
+
+    with prog.stage("posterior", f"MAP sampling ({options.samples} samples)"):
+        if options.sampler_mode == "paper":
+            config = SamplerConfig(n_samples=options.samples)
+        else:
+            config = replace(SamplerConfig.improved(), n_samples=options.samples)
+        if options.camera_height is not None or not objects:
+            wh = geom.ceiling_z  # scale 1: the room is metric under the given (or default) camera height
+            config = replace(config, wall_height_range=(wh, wh), initial_wall_height=wh)
+
+        def sample(objs: list, tables: list, cfg):
+            boxes = np.array([o.bbox_pano for o in objs]) if objs else None
+            obs = observe_labels(surf.labels, boxes, object_pixels="matched" if objs else "masked")
+            es = surface_likelihood(obs, geom.floor, geom.ceiling_z, h0)
+            return map_estimate(es, objs, image_width=W, image_height=H, orientation=tables or None,
+                                config=cfg, rng=options.seed)
+
+        try:
+            post = sample(objects, eo, config)
+        except PosteriorError:
+            # Some detection cannot stand in the estimated room (a wrong box, or a wall placed too close):
+            # keep, by decreasing score, the objects the sampler can place, and say which were dropped.
+            keep: list[int] = []
+            quick = replace(config, n_samples=min(config.n_samples or 200, 100))
+            for k in sorted(range(len(objects)), key=lambda k: -(objects[k].score or 0.0)):
+                try:
+                    sample([objects[j] for j in keep + [k]], [eo[j] for j in keep + [k]], quick)
+                    keep.append(k)
+                except PosteriorError:
+                    notes.append(f"dropped {objects[k].cls} (score {objects[k].score:.2f}): it cannot stand inside "
+                                 "the estimated room without overlapping a wall or another object")
+            keep.sort()
+            objects, eo = [objects[j] for j in keep], [eo[j] for j in keep]
+            if not objects:
+                wh = geom.ceiling_z
+                config = replace(config, wall_height_range=(wh, wh), initial_wall_height=wh)
+            try:
+                post = sample(objects, eo, config)
+            except PosteriorError as exc:
+                raise RuntimeError(f"the sampler found no valid scene: {exc}") from None
+    scene = post.scene
+
+    # Report in the world frame of the conventions, boxes in the input panorama.
+    objs = []
+    for o in scene.objects:
+        box = o.bbox_pano
+        if box is not None and rect is not None:
+            box = rect.box_to_input(box, W, H)
+        objs.append(replace(o, bbox_pano=box))
+    labels_input = surf.labels if rect is None else rotate_pano(surf.labels, R.T, interpolation="nearest")
+    timing = dict(prog.timings)
+    timing["total"] = prog.total()
+    scene = Scene(floor=scene.floor, ceiling_z=scene.ceiling_z, camera_height=scene.camera_height,
+                  objects=tuple(objs), floor_z=0.0, rotation=R, scale=scene.scale if objects else None,
+                  image_width=W, image_height=H, timing=timing)
+    return PipelineResult(scene=scene, image=image, labels_input=labels_input, detections=dets,
+                          warnings=tuple(notes), extra={"rectification": rect, "geometry": geom, "posterior": post})

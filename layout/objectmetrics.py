@@ -1,0 +1,125 @@
+"""Object metrics of the paper's Table 2: per-class position and orientation errors after matching.
+
+Objects of one class are matched to the ground truth by Hungarian
+assignment on their floor-plane distance, with a gate (1.5 m by default, as
+``shared/tools/score_scene.py``); unmatched ground-truth objects are counted
+as misses, not dropped.
+
+Convention: position error = distance between box centres projected on the
+floor plane (metres); orientation error = smallest angle between the yaws
+(radians, in [0, pi]); objects of rotationally symmetric classes (plant) have
+no orientation error; two-fold symmetric ones (tables) are compared mod pi.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["ObjectRecord", "ClassErrors", "match_objects", "yaw_error"]
+
+#: Classes without an orientation (CONVENTIONS.md).
+SYMMETRIC_CLASSES = frozenset({"plant"})
+#: Classes whose orientation is defined up to a half turn.
+TWO_FOLD_CLASSES = frozenset({"table"})
+
+
+@dataclass(frozen=True)
+class ObjectRecord:
+    """What the metrics need of an object: class, floor position and yaw (radians; None if unknown)."""
+
+    cls: str
+    xy: tuple[float, float]
+    yaw: float | None
+
+    @classmethod
+    def from_json(cls, d: Mapping) -> "ObjectRecord":
+        """From a scene.json / gt.json object (``center``, ``yaw_deg``)."""
+        yaw = d.get("yaw_deg")
+        return cls(str(d["class"]).lower(), (float(d["center"][0]), float(d["center"][1])),
+                   None if yaw is None else float(np.deg2rad(yaw)))
+
+
+@dataclass(frozen=True)
+class ClassErrors:
+    """Errors of one class in one room.
+
+    Attributes
+    ----------
+    n_gt, n_pred, matched : int
+    position : (matched,) float
+        Floor distances of the matched pairs, metres.
+    orientation : (k,) float
+        Yaw errors of matched pairs with an orientation, radians.
+    """
+
+    n_gt: int
+    n_pred: int
+    matched: int
+    position: NDArray[np.float64]
+    orientation: NDArray[np.float64]
+
+
+def yaw_error(a: float | NDArray, b: float | NDArray, fold: int = 1) -> NDArray[np.float64]:
+    """Smallest angle between yaws ``a`` and ``b`` (radians), with ``fold``-fold symmetry.
+
+    Examples
+    --------
+    >>> round(float(np.rad2deg(yaw_error(np.deg2rad(350.0), np.deg2rad(10.0)))), 9)
+    20.0
+    >>> float(np.rad2deg(yaw_error(0.0, np.pi, fold=2)))
+    0.0
+    """
+    period = 2.0 * np.pi / fold
+    d = np.mod(np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64), period)
+    return np.minimum(d, period - d)
+
+
+def match_objects(pred: Sequence[ObjectRecord], gt: Sequence[ObjectRecord], gate: float = 1.5
+                  ) -> dict[str, ClassErrors]:
+    """Per ground-truth class: Hungarian matching on floor distance, errors of the pairs within ``gate``.
+
+    Parameters
+    ----------
+    pred, gt : sequences of ObjectRecord
+    gate : float
+        Pairs farther apart than this (metres) do not count as a match.
+
+    Returns
+    -------
+    dict class -> ClassErrors (every class present in ``gt``)
+
+    Examples
+    --------
+    >>> g = [ObjectRecord("bed", (1.0, 0.0), 0.0)]
+    >>> p = [ObjectRecord("bed", (1.1, 0.0), np.deg2rad(5.0))]
+    >>> e = match_objects(p, g)["bed"]
+    >>> e.matched, round(float(e.position[0]), 3), round(float(np.rad2deg(e.orientation[0])), 3)
+    (1, 0.1, 5.0)
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    if not (np.isfinite(gate) and gate > 0):
+        raise ValueError(f"gate: expected a positive distance, got {gate!r}")
+    out: dict[str, ClassErrors] = {}
+    for cls in sorted({o.cls for o in gt}):
+        G = [o for o in gt if o.cls == cls]
+        P = [o for o in pred if o.cls == cls]
+        pos: list[float] = []
+        ori: list[float] = []
+        if P:
+            gxy = np.array([o.xy for o in G], dtype=np.float64)
+            pxy = np.array([o.xy for o in P], dtype=np.float64)
+            d = np.linalg.norm(gxy[:, None] - pxy[None], axis=-1)
+            rows, cols = linear_sum_assignment(d)
+            for i, j in zip(rows, cols):
+                if d[i, j] > gate:
+                    continue
+                pos.append(float(d[i, j]))
+                if cls not in SYMMETRIC_CLASSES and G[i].yaw is not None and P[j].yaw is not None:
+                    ori.append(float(yaw_error(P[j].yaw, G[i].yaw, 2 if cls in TWO_FOLD_CLASSES else 1)))
+        out[cls] = ClassErrors(len(G), len(P), len(pos), np.array(pos), np.array(ori))
+    return out

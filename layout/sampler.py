@@ -1,0 +1,1135 @@
+"""MAP estimation of scale, object positions and orientations (paper Sec. 3.4 and Sec. 4).
+
+The posterior of a scene hypothesis ``Phi = (lambda, p_j, theta_j)`` is
+
+    P(I | Phi) pi(Phi) = exp(-(E_s + E_o)) * exp(-(E_ow + mu * E_oo))
+
+with ``E_s`` the surface-label likelihood (:mod:`layout.likelihood`), ``E_o``
+the orientation likelihood from the caller (the pose CRF of :mod:`posecrf`;
+layout never imports it), and the context prior ``E_ow + mu * E_oo``
+(:mod:`layout.context`). :func:`map_estimate` minimises
+``w_s E_s + w_o E_o + E_ow + mu E_oo`` (paper: ``w_s = w_o = 1``) by sampling.
+
+Scale. The room comes up to scale (floor polygon, ceiling and camera
+height at scale 1, e.g. metric under an assumed camera height). A
+hypothesis' scale ``lambda`` multiplies all three; the objects are metric
+(their model sizes are known). The paper samples ``lambda`` through the wall
+height ``lambda * ceiling_z``, uniform in [2.0 m, 3.5 m]; camera height and
+wall height of the result follow from ``lambda``.
+
+Initialisation (:func:`initialise_objects`): an object's direction is that
+of its detection box; its distance is the one at which its known footprint
+(model size, yaw from the pose estimate) spans the box's columns exactly -
+independent of the unknown scale. Its box also gives the camera height in
+closed form (:func:`camera_height_estimates`): the lowest point of the box
+is the floor contact of the footprint point closest to the camera, so
+``camera_height = elevation + r_min * tan(depression)``; the top edge gives a
+second estimate.
+
+Two sampling schemes (:class:`SamplerConfig`):
+
+``"paper"`` (Sec. 4, exactly): epochs of samples; in each sample EVERY
+object is moved, by a normal of variance ``0.1 d`` along the camera-object
+ray and ``0.005 d`` across it around the seed (``d`` = camera-object
+distance), its yaw drawn from a normal of variance 0.1 rad^2 around the pose
+estimate, and the scale drawn afresh, uniformly in wall height; the best
+sample of an epoch (or the seed, if none beats it) seeds the next epoch.
+The scale starts at a wall height of 2.5 m (the paper's Table 2 setting);
+``w_s = w_o = 1``. Default 8 epochs x 25 samples; ``N_S = 3000`` is
+120 x 25. (The paper's "variance" is read literally: standard deviation
+``sqrt(0.1 d)`` m.)
+
+``"improved"`` (:meth:`SamplerConfig.improved`, not in the paper):
+
+* the scale starts from the camera height of the boxes: each object's
+  position and camera height fitted to all four edges of its box
+  (:func:`fit_boxes`), median over the objects; the positions are then
+  fitted again at that camera height (the box width alone fixes the
+  distance of an object seen edge-on badly when its yaw is off);
+* each epoch proposes scale-only moves (normal around the seed in wall
+  height, a fifth of them uniform in the range), then coordinate-wise object
+  moves (each proposal moves ONE object: position as in the paper, yaw
+  around the seed); the per-object winners are combined when the
+  combination is valid and better, else the single best move is taken;
+  proposal widths anneal geometrically from the paper's to ``anneal_to``
+  times them over the epochs;
+* ``w_s = 100``: with the paper's ``w_s = 1`` the image term (a fraction of
+  pixels, ~1e-3 per 10 cm of object motion) is outweighed by the context
+  prior (metres, and 10 per unit of misalignment), which then drags
+  objects and walls away from where the image puts them;
+* ``keep_in_box``: an object's centre must stay within its detection box's
+  columns;
+* meant for an observation with ``object_pixels="matched"``
+  (:func:`layout.likelihood.observe_labels`).
+
+Hard constraints (never violated by a returned scene): every footprint
+inside the room, no two footprints overlapping by more than ``overlap_tol``,
+the camera at least ``camera_clearance`` from every footprint, every object
+below the ceiling (and, with ``keep_in_box``, on its box). An invalid
+initial state is first repaired (the scale grows when it was assumed, as in
+the paper scheme; objects slide along their rays, turn or step aside); the
+sampler then never prefers a sample that violates a constraint
+to one that does not (lexicographic order: violation, then energy). If no
+valid state was found, :class:`PosteriorError` is raised.
+
+Convention:
+    World frame of shared/CONVENTIONS.md (metres, z up, camera at
+    ``(0, 0, camera_height)``); yaw in radians CCW from +x to the object's
+    front; ``bbox_pano`` in pixels of the upright panorama the boxes refer
+    to (``u0 > u1`` wraps the seam). Wall height = ``ceiling_z - floor_z``
+    with the floor at z = 0.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Collection, Literal, Mapping, Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from panogeom.coords import DEFAULT_CAMERA_HEIGHT, pixel_to_lonlat
+
+from .context import ALIGNMENT_MODES, MU, NU_N, context_energy, pair_overlap_areas
+from .likelihood import OrientationLikelihood, OrientationSpec, SurfaceLikelihood, orientation_likelihood
+from .placement import BACK_TO_WALL, CLASS_ALIGNMENT
+from .polygon import convex_in_polygon, distance_to_boundary, oriented_rectangles, points_in_polygon
+from .rooms import as_generator
+from .scene import Scene, SceneObject
+
+__all__ = [
+    "SamplerMode",
+    "SYMMETRIC_CLASSES",
+    "DetectedObject",
+    "InitialObjects",
+    "initialise_objects",
+    "camera_height_estimates",
+    "fit_boxes",
+    "SamplerConfig",
+    "SceneEnergies",
+    "PosteriorResult",
+    "PosteriorError",
+    "map_estimate",
+]
+
+FloatArray = NDArray[np.float64]
+SamplerMode = Literal["paper", "improved"]
+
+#: Classes without a canonical orientation (no alignment term, no orientation error).
+SYMMETRIC_CLASSES: frozenset[str] = frozenset({"plant"})
+
+_INVALID = 1e9  # selection key offset of samples that violate a hard constraint
+
+
+class PosteriorError(RuntimeError):
+    """No hypothesis satisfying the hard constraints was found."""
+
+
+@dataclass(frozen=True, eq=False)
+class DetectedObject:
+    """One object as the sampler receives it: detection box, retrieved model and pose estimate.
+
+    Attributes
+    ----------
+    cls : str
+        Lowercase class name.
+    bbox_pano : (4,) float
+        ``(u0, v0, u1, v1)`` pixel box in the upright panorama (``u0 > u1``
+        wraps the seam).
+    size : (3,) float
+        Metric model size ``(l, w, h)``, metres.
+    yaw : float
+        Pose estimate, radians, CCW from +x to the object's front.
+    model_id, id : str or None
+        Passed through to the scene (``id`` defaults to ``"<cls>-<k>"``).
+    score : float or None
+        Detection score, passed through.
+    elevation : float
+        Height of the object's base above the floor (0: it stands on it).
+    symmetric : bool or None
+        Rotationally symmetric (no alignment term); None: True for the
+        classes in :data:`SYMMETRIC_CLASSES`.
+    """
+
+    cls: str
+    bbox_pano: FloatArray
+    size: FloatArray
+    yaw: float
+    model_id: str | None = None
+    id: str | None = None
+    score: float | None = None
+    elevation: float = 0.0
+    symmetric: bool | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.cls, str) or not self.cls:
+            raise ValueError(f"cls: expected a class name, got {self.cls!r}")
+        box = np.asarray(self.bbox_pano, dtype=np.float64)
+        if box.shape != (4,) or not np.all(np.isfinite(box)) or not box[1] < box[3]:
+            raise ValueError(f"bbox_pano: expected finite (u0, v0, u1, v1) with v0 < v1, got {self.bbox_pano!r}")
+        size = np.asarray(self.size, dtype=np.float64)
+        if size.shape != (3,) or not np.all(np.isfinite(size)) or np.any(size <= 0):
+            raise ValueError(f"size: expected (l, w, h) of 3 numbers > 0, got {self.size!r}")
+        if not math.isfinite(float(self.yaw)):
+            raise ValueError(f"yaw: expected a finite angle in radians, got {self.yaw!r}")
+        if not (math.isfinite(float(self.elevation)) and self.elevation >= 0):
+            raise ValueError(f"elevation: expected a height >= 0 in metres, got {self.elevation!r}")
+        for a in (box, size):
+            a.setflags(write=False)
+        object.__setattr__(self, "bbox_pano", box)
+        object.__setattr__(self, "size", size)
+        object.__setattr__(self, "yaw", float(self.yaw))
+        object.__setattr__(self, "elevation", float(self.elevation))
+        if self.symmetric is None:
+            object.__setattr__(self, "symmetric", self.cls in SYMMETRIC_CLASSES)
+
+
+# --------------------------------------------------------------------------- initialisation
+
+
+def _box_lon(objects: Sequence[DetectedObject], width: int, height: int) -> tuple[FloatArray, FloatArray]:
+    """Longitudes of the left and right box edges, right >= left (unwrapped across the seam)."""
+    box = np.array([o.bbox_pano for o in objects], dtype=np.float64).reshape(-1, 4)
+    u0, u1 = box[:, 0], box[:, 2]
+    u1 = np.where(u1 < u0, u1 + width, u1)
+    lon = pixel_to_lonlat(np.stack([np.stack([u0, u1], 1), np.zeros((len(box), 2))], -1), width, height)[..., 0]
+    return lon[:, 0], lon[:, 1]
+
+
+def _angular_extent(xy: FloatArray, yaw: FloatArray, size2: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Smallest and largest longitude of footprint corners (relative to the centre's, unwrapped)."""
+    corners = oriented_rectangles(xy, yaw, size2)  # (..., 4, 2)
+    lon_c = np.arctan2(-xy[..., 1], xy[..., 0])
+    lon = np.arctan2(-corners[..., 1], corners[..., 0])
+    rel = np.angle(np.exp(1j * (lon - lon_c[..., None])))
+    return lon_c + rel.min(axis=-1), lon_c + rel.max(axis=-1)
+
+
+def _wrap(angle: FloatArray) -> FloatArray:
+    """Angles into [-pi, pi)."""
+    return np.remainder(angle + np.pi, 2 * np.pi) - np.pi
+
+
+def _rect_distance(xy: FloatArray, yaw: FloatArray, size2: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """(closest, farthest) horizontal distance from the camera axis to each footprint."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    ox = -(xy[..., 0] * c + xy[..., 1] * s)
+    oy = xy[..., 0] * s - xy[..., 1] * c
+    dx = np.maximum(np.abs(ox) - 0.5 * size2[..., 0], 0.0)
+    dy = np.maximum(np.abs(oy) - 0.5 * size2[..., 1], 0.0)
+    far = np.hypot(np.abs(ox) + 0.5 * size2[..., 0], np.abs(oy) + 0.5 * size2[..., 1])
+    return np.hypot(dx, dy), far
+
+
+@dataclass(frozen=True)
+class InitialObjects:
+    """Result of :func:`initialise_objects`.
+
+    Attributes
+    ----------
+    centers : (N, 3) float
+        Box centres, metres (``z = elevation + h / 2``).
+    yaws : (N,) float
+        The pose estimates, radians.
+    distance : (N,) float
+        Horizontal camera-to-centre distance, metres.
+    camera_heights : (N, 2) float
+        Closed-form camera height from the box bottom and from the box top
+        at ``centers`` (:func:`camera_height_estimates`); NaN where the case
+        does not apply.
+    fitted_camera_heights : (N,) float
+        Camera height of a least-squares fit of position and camera height
+        to all four box edges (:func:`fit_boxes`), per object.
+    """
+
+    centers: FloatArray
+    yaws: FloatArray
+    distance: FloatArray
+    camera_heights: FloatArray
+    fitted_camera_heights: FloatArray
+
+
+def camera_height_estimates(objects: Sequence[DetectedObject], centers: ArrayLike, width: int,
+                            height: int) -> FloatArray:
+    """Camera height implied by each object's box, given where the object stands.
+
+    The lowest point of a box seen from the camera is the floor-contact
+    point of its footprint closest to the camera axis, at horizontal
+    distance ``r_min``: ``h_cam = elevation + r_min * tan(-lat_bottom)``. The
+    highest point is the top of the farthest corner (``r_max``) when the
+    object is lower than the camera (``lat_top < 0``), else the top of the
+    closest point: ``h_cam = top - r * tan(lat_top)``.
+
+    Parameters
+    ----------
+    objects : sequence of N DetectedObject
+    centers : (N, 3) float
+        Where the objects stand (metric), e.g. from :func:`initialise_objects`.
+    width, height : int
+        Size of the panorama the boxes refer to.
+
+    Returns
+    -------
+    (N, 2) float
+        ``[from the bottom, from the top]`` in metres; NaN where the box
+        bottom is not below the horizon.
+
+    Examples
+    --------
+    >>> o = DetectedObject("bed", [450.0, 291.4, 574.0, 360.9], [2.0, 1.6, 0.6], np.pi)  # 3 m ahead, camera 1.5 m
+    >>> init = initialise_objects([o], 1024, 512)
+    >>> init.centers.round(2).tolist(), camera_height_estimates([o], init.centers, 1024, 512).round(2).tolist()
+    ([[3.0, -0.0, 0.3]], [[1.5, 1.5]])
+    """
+    objs = list(objects)
+    c = np.asarray(centers, dtype=np.float64).reshape(len(objs), 3)
+    if not objs:
+        return np.zeros((0, 2))
+    box = np.array([o.bbox_pano for o in objs])
+    size = np.array([o.size for o in objs])
+    yaw = np.array([o.yaw for o in objs])
+    elev = np.array([o.elevation for o in objs])
+    lat = pixel_to_lonlat(np.stack([np.zeros((len(objs), 2)), box[:, [1, 3]]], -1), width, height)[..., 1]
+    lat_top, lat_bot = lat[:, 0], lat[:, 1]
+    r_min, r_max = _rect_distance(c[:, :2], yaw, size[:, :2])
+    with np.errstate(invalid="ignore"):
+        from_bottom = np.where(lat_bot < 0, elev + r_min * np.tan(-lat_bot), np.nan)
+        top = elev + size[:, 2]
+        from_top = np.where(lat_top < 0, top + r_max * np.tan(-lat_top), top - r_min * np.tan(lat_top))
+    return np.stack([from_bottom, from_top], axis=1)
+
+
+def initialise_objects(objects: Sequence[DetectedObject], width: int, height: int) -> InitialObjects:
+    """Place each object where its known size fits its detection box (paper Sec. 3.4 initialisation).
+
+    The footprint (model length and width, pose-estimate yaw) is placed so
+    that its corners span exactly the longitudes of the box's left and
+    right edges: bisection on the distance for the angular width and turns
+    about the camera to centre it, then Gauss-Newton on both edges. This
+    uses only horizontal angles, so it does not depend on the unknown
+    scale. A near, wide object may fit at several distances; the solver
+    also starts nearer and farther, and of the exact fits keeps the one
+    whose box top and bottom agree best on the camera height
+    (:func:`camera_height_estimates`).
+
+    Parameters
+    ----------
+    objects : sequence of N DetectedObject
+    width, height : int
+        Size of the panorama the boxes refer to.
+
+    Returns
+    -------
+    InitialObjects
+
+    Examples
+    --------
+    >>> o = DetectedObject("tv", [489.66, 266.41, 534.34, 294.6], [0.2, 0.8, 0.5], np.pi, elevation=0.8)  # 3 m ahead
+    >>> (initialise_objects([o], 1024, 512).centers.round(2) + 0.0).tolist()
+    [[3.0, 0.0, 1.05]]
+    """
+    objs = list(objects)
+    n = len(objs)
+    if n == 0:
+        return InitialObjects(np.zeros((0, 3)), np.zeros(0), np.zeros(0), np.zeros((0, 2)), np.zeros(0))
+    left, right = _box_lon(objs, width, height)
+    size = np.array([o.size for o in objs])
+    yaw = np.array([o.yaw for o in objs])
+    r, phi = _fit_horizontal(left, right, yaw, size[:, :2])
+    # A near, wide object can fit its box's columns at several places: start also nearer and farther,
+    # and among the exact fits keep the one whose top and bottom edges agree on the camera height.
+    starts = np.array([1.0, 0.5, 0.75, 1.5, 2.5])
+    m = len(starts)
+    rr, pp = _fit_horizontal(np.repeat(left, m), np.repeat(right, m), np.repeat(yaw, m), np.repeat(size[:, :2], m, 0),
+                             r0=np.repeat(r, m) * np.tile(starts, n), phi0=np.repeat(phi, m))
+    xy_c = (rr[:, None] * np.stack([np.cos(pp), -np.sin(pp)], axis=1)).reshape(n, m, 2)
+    a, b = _angular_extent(xy_c.reshape(-1, 2), np.repeat(yaw, m), np.repeat(size[:, :2], m, 0))
+    resid = np.hypot(_wrap(a - np.repeat(left, m)), _wrap(b - np.repeat(right, m))).reshape(n, m)
+    z = np.array([o.elevation for o in objs]) + 0.5 * size[:, 2]
+    cand = np.concatenate([xy_c, np.broadcast_to(z[:, None, None], (n, m, 1))], axis=-1)
+    heights = camera_height_estimates([o for o in objs for _ in range(m)], cand.reshape(-1, 3), width,
+                                      height).reshape(n, m, 2)
+    spread = np.abs(heights[..., 0] - heights[..., 1])
+    spread = np.where(np.isfinite(spread), spread, 0.0)
+    exact = resid <= 1e-6 + resid.min(axis=1, keepdims=True)
+    pick = np.argmin(np.where(exact, spread, np.inf), axis=1)
+    centers = cand[np.arange(n), pick]
+    h = heights[np.arange(n), pick]
+    known = np.isfinite(h)
+    fallback = float(np.median(h[known])) if known.any() else DEFAULT_CAMERA_HEIGHT
+    start = np.where(known.any(axis=1), np.where(known, h, 0.0).sum(axis=1) / np.maximum(known.sum(axis=1), 1),
+                     fallback)
+    _, fitted = fit_boxes(objs, centers, width, height, camera_height=None, start_height=start)
+    return InitialObjects(centers=centers, yaws=yaw.copy(), distance=np.hypot(centers[:, 0], centers[:, 1]),
+                          camera_heights=h, fitted_camera_heights=fitted)
+
+
+def _box_angles(xy: FloatArray, yaw: FloatArray, size: FloatArray, elevation: FloatArray, cam_h: FloatArray,
+                mid: FloatArray) -> FloatArray:
+    """(N, 4) edges of the boxes seen from the camera: longitudes of the left and right edges relative
+    to ``mid`` and latitudes of the top and bottom edges, radians."""
+    a, b = _angular_extent(xy, yaw, size[:, :2])
+    r_min, r_max = _rect_distance(xy, yaw, size[:, :2])
+    r_min = np.maximum(r_min, 1e-6)
+    bottom, top = elevation - cam_h, elevation + size[:, 2] - cam_h
+    lat_top = np.where(top < 0, np.arctan2(top, r_max), np.arctan2(top, r_min))
+    lat_bot = np.where(bottom < 0, np.arctan2(bottom, r_min), np.arctan2(bottom, r_max))
+    return np.stack([_wrap(a - mid), lat_top, _wrap(b - mid), lat_bot], axis=1)
+
+
+def fit_boxes(objects: Sequence[DetectedObject], centers: ArrayLike, width: int, height: int,
+              camera_height: float | None = None,
+              start_height: ArrayLike = 1.6) -> tuple[FloatArray, FloatArray]:
+    """Least-squares fit of the objects' floor positions to all four edges of their boxes.
+
+    The width of a box alone fixes an object's distance badly when it is
+    seen nearly edge-on and its yaw is a few degrees off; its top and bottom
+    edges do not depend on the yaw that much. Levenberg-Marquardt on the
+    four edge angles (radians) per object, from ``centers``.
+
+    Parameters
+    ----------
+    objects : sequence of N DetectedObject
+    centers : (N, 3) float
+        Starting positions (e.g. :attr:`InitialObjects.centers`).
+    width, height : int
+        Size of the panorama the boxes refer to.
+    camera_height : float or None
+        Known camera height; None: fit one per object as well (3 unknowns,
+        4 equations), starting from ``start_height``.
+    start_height : float or (N,) float
+
+    Returns
+    -------
+    centers : (N, 3) float
+    camera_heights : (N,) float
+        The fitted (or given) camera height per object.
+
+    Examples
+    --------
+    >>> o = DetectedObject("bed", [450.0, 291.4, 574.0, 360.9], [2.0, 1.6, 0.6], np.pi + 0.05)  # yaw 3 deg off
+    >>> c, h = fit_boxes([o], [[3.1, 0.2, 0.3]], 1024, 512)
+    >>> c.round(1).tolist(), h.round(1).tolist()
+    ([[3.0, 0.0, 0.3]], [1.5])
+    """
+    objs = list(objects)
+    n = len(objs)
+    c = np.asarray(centers, dtype=np.float64).reshape(n, 3).copy()
+    if n == 0:
+        return c, np.zeros(0)
+    left, right = _box_lon(objs, width, height)
+    mid = 0.5 * (left + right)
+    box = np.array([o.bbox_pano for o in objs])
+    lat = pixel_to_lonlat(np.stack([np.zeros((n, 2)), box[:, [1, 3]]], -1), width, height)[..., 1]
+    target = np.stack([left - mid, lat[:, 0], right - mid, lat[:, 1]], axis=1)
+    size = np.array([o.size for o in objs])
+    yaw = np.array([o.yaw for o in objs])
+    elev = np.array([o.elevation for o in objs])
+    free_h = camera_height is None
+    h = np.broadcast_to(np.asarray(start_height if free_h else camera_height, dtype=np.float64), (n,)).copy()
+    p = np.column_stack([c[:, :2], h]) if free_h else c[:, :2].copy()
+    k = p.shape[1]
+
+    def resid(q: FloatArray) -> FloatArray:
+        hh = q[:, 2] if free_h else h
+        return _box_angles(q[:, :2], yaw, size, elev, hh, mid) - target
+
+    def cost(r: FloatArray) -> FloatArray:
+        return np.sum(r * r, axis=1)
+
+    def camera_clear(q: FloatArray) -> NDArray[np.bool_]:
+        near, _ = _rect_distance(q[:, :2], yaw, size[:, :2])
+        ok = near > 1e-3
+        return ok & (q[:, 2] > 0.05) if free_h else ok
+
+    r0 = resid(p)
+    damp = np.full(n, 1e-3)
+    for _ in range(30):
+        jac = np.empty((n, 4, k))
+        for i in range(k):
+            dq = np.zeros_like(p)
+            dq[:, i] = 1e-6 * np.maximum(np.abs(p[:, i]), 1.0)
+            jac[:, :, i] = (resid(p + dq) - r0) / dq[:, i, None]
+        jtj = np.einsum("nri,nrj->nij", jac, jac)
+        jtr = np.einsum("nri,nr->ni", jac, r0)
+        a = jtj + damp[:, None, None] * np.eye(k) * (1.0 + np.einsum("nii->ni", jtj)[:, :, None])
+        step = np.linalg.solve(a, -jtr[..., None])[..., 0]
+        q = p + step
+        r1 = resid(q)
+        better = (cost(r1) < cost(r0)) & camera_clear(q) & np.all(np.isfinite(r1), axis=1)
+        p = np.where(better[:, None], q, p)
+        r0 = np.where(better[:, None], r1, r0)
+        damp = np.where(better, damp * 0.3, damp * 10.0)
+    c[:, :2] = p[:, :2]
+    return c, (p[:, 2] if free_h else h)
+
+
+def _fit_horizontal(left: FloatArray, right: FloatArray, yaw: FloatArray, size2: FloatArray,
+                    r0: FloatArray | None = None, phi0: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
+    """Distance r and direction phi of footprint centres whose corners span longitudes [left, right].
+
+    Without a start: four alternations of a bisection on r for the angular
+    width and a turn of phi that centres the span, then Gauss-Newton on both
+    edges (near, wide objects couple r and phi); with ``r0, phi0``:
+    Gauss-Newton from there.
+    """
+    n = len(left)
+    mid = 0.5 * (left + right)
+
+    def r_min(phi: FloatArray) -> FloatArray:
+        """Smallest centre distance along direction phi that keeps the camera outside the footprint."""
+        rel = -phi - yaw  # angle of the camera-to-object direction in the object's frame
+        c, s = np.abs(np.cos(rel)), np.abs(np.sin(rel))
+        t = np.minimum(0.5 * size2[:, 0] / np.maximum(c, 1e-12), 0.5 * size2[:, 1] / np.maximum(s, 1e-12))
+        return t * 1.001 + 1e-3
+
+    def extent(r: FloatArray, phi: FloatArray) -> tuple[FloatArray, FloatArray]:
+        return _angular_extent(r[:, None] * np.stack([np.cos(phi), -np.sin(phi)], axis=1), yaw, size2)
+
+    if r0 is None or phi0 is None:
+        phi = mid.copy()
+        for _ in range(4):
+            lo, hi = r_min(phi), np.full(n, 50.0)
+            for _ in range(60):
+                r = 0.5 * (lo + hi)
+                a, b = extent(r, phi)
+                wider = (b - a) > (right - left)
+                lo = np.where(wider, r, lo)
+                hi = np.where(wider, hi, r)
+            r = 0.5 * (lo + hi)
+            a, b = extent(r, phi)
+            phi = phi + _wrap(mid - 0.5 * (a + b))
+    else:
+        phi = np.asarray(phi0, dtype=np.float64).copy()
+        r = np.maximum(np.asarray(r0, dtype=np.float64), r_min(phi))
+    for _ in range(25):
+        a, b = extent(r, phi)
+        res = np.stack([_wrap(a - left), _wrap(b - right)], axis=1)
+        dr, dp = 1e-5 * r, 1e-6
+        ar, br = extent(r + dr, phi)
+        ap, bp = extent(r, phi + dp)
+        j00, j01, j10, j11 = (ar - a) / dr, (ap - a) / dp, (br - b) / dr, (bp - b) / dp
+        det = j00 * j11 - j01 * j10
+        ok = np.abs(det) > 1e-12
+        safe = np.where(ok, det, 1.0)
+        step_r = np.where(ok, (j11 * res[:, 0] - j01 * res[:, 1]) / safe, 0.0)
+        step_p = np.where(ok, (-j10 * res[:, 0] + j00 * res[:, 1]) / safe, 0.0)
+        p_new = phi - np.clip(step_p, -0.2, 0.2)
+        r_new = np.clip(r - np.clip(step_r, -0.5 * r, 0.5 * r), r_min(p_new), 50.0)
+        a2, b2 = extent(r_new, p_new)
+        better = np.hypot(_wrap(a2 - left), _wrap(b2 - right)) < np.hypot(res[:, 0], res[:, 1])
+        r, phi = np.where(better, r_new, r), np.where(better, p_new, phi)
+    return r, phi
+
+
+# --------------------------------------------------------------------------- configuration and results
+
+
+@dataclass(frozen=True)
+class SamplerConfig:
+    """Options of :func:`map_estimate` (defaults: the paper's Sec. 4).
+
+    Attributes
+    ----------
+    mode : {"paper", "improved"}
+        Sampling scheme (module docstring).
+    epochs, samples_per_epoch : int
+        Paper: 8 x 25. In ``"improved"`` mode ``samples_per_epoch`` is the
+        number of scale proposals and of proposals per object in an epoch.
+    n_samples : int or None
+        Total budget of evaluated hypotheses ``N_S``; when given it sets the
+        number of epochs (e.g. 3000 = 120 x 25 in paper mode).
+    wall_height_range : (float, float)
+        Uniform scale prior in wall height, metres (paper: [2.0, 3.5]);
+        ``low == high`` fixes the scale.
+    initial_wall_height : float or None
+        Wall height of the initial hypothesis (paper mode default 2.5 m);
+        None: from the camera height fitted to the boxes, and the positions
+        refitted at that height (module docstring).
+    position_variance : (along, across)
+        Variance of the position proposals as a multiple of the
+        camera-object distance, m^2 per m (paper: 0.1, 0.005).
+    yaw_variance : float
+        Variance of the yaw proposals, rad^2 (paper: 0.1).
+    wall_height_sigma : float
+        Standard deviation of the improved mode's scale proposals, metres.
+    anneal_to : float
+        Improved mode: proposal widths shrink to this fraction over the epochs.
+    surface_weight, orientation_weight : float
+        ``w_s``, ``w_o`` (paper: 1, 1).
+    keep_in_box : bool
+        Treat an object whose centre leaves its detection box's columns (in
+        longitude) as a hard-constraint violation: the detector's direction
+        is trusted. Not in the paper: False.
+    nu_n, mu : float
+        Context prior weights (paper: 10, 0.25).
+    alignment : mapping class -> mode, or None
+        Alignment mode per class (:mod:`layout.context`); None:
+        :data:`layout.placement.CLASS_ALIGNMENT`, others ``"parallel"``.
+    back_to_wall : collection of str
+        Classes whose wall term is measured from the back edge
+        (:data:`layout.placement.BACK_TO_WALL`); empty: the centre, as in
+        the paper.
+    overlap_tol : float
+        Largest allowed footprint intersection, m^2.
+    camera_clearance : float
+        Smallest allowed distance from the camera axis to a footprint, metres.
+    wall_tol : float
+        Allowed footprint penetration into a wall, metres.
+    """
+
+    mode: SamplerMode = "paper"
+    epochs: int = 8
+    samples_per_epoch: int = 25
+    n_samples: int | None = None
+    wall_height_range: tuple[float, float] = (2.0, 3.5)
+    initial_wall_height: float | None = 2.5
+    position_variance: tuple[float, float] = (0.1, 0.005)
+    yaw_variance: float = 0.1
+    wall_height_sigma: float = 0.25
+    anneal_to: float = 0.02
+    surface_weight: float = 1.0
+    orientation_weight: float = 1.0
+    keep_in_box: bool = False
+    nu_n: float = NU_N
+    mu: float = MU
+    alignment: Mapping[str, str] | None = None
+    back_to_wall: Collection[str] = field(default_factory=lambda: BACK_TO_WALL)
+    overlap_tol: float = 1e-4
+    camera_clearance: float = 0.1
+    wall_tol: float = 1e-6
+
+    def __post_init__(self) -> None:
+        if self.mode not in ("paper", "improved"):
+            raise ValueError(f"mode: expected 'paper' or 'improved', got {self.mode!r}")
+        for name in ("epochs", "samples_per_epoch"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise ValueError(f"{name}: expected an integer >= 1, got {v!r}")
+        if self.n_samples is not None and (not isinstance(self.n_samples, (int, np.integer)) or self.n_samples < 1):
+            raise ValueError(f"n_samples: expected an integer >= 1 or None, got {self.n_samples!r}")
+        lo, hi = (float(v) for v in self.wall_height_range)
+        if not 0 < lo <= hi:
+            raise ValueError(f"wall_height_range: expected 0 < low <= high metres, got {self.wall_height_range!r}")
+        if self.initial_wall_height is not None and not lo <= self.initial_wall_height <= hi:
+            raise ValueError(f"initial_wall_height: expected a value in {self.wall_height_range} or None, "
+                             f"got {self.initial_wall_height!r}")
+        pv = tuple(float(v) for v in self.position_variance)
+        if len(pv) != 2 or not all(v > 0 for v in pv):
+            raise ValueError(f"position_variance: expected two positive numbers, got {self.position_variance!r}")
+        for name in ("yaw_variance", "wall_height_sigma", "anneal_to"):
+            if not float(getattr(self, name)) > 0:
+                raise ValueError(f"{name}: expected a value > 0, got {getattr(self, name)!r}")
+        for name in ("surface_weight", "orientation_weight", "nu_n", "mu", "overlap_tol", "camera_clearance",
+                     "wall_tol"):
+            v = float(getattr(self, name))
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name}: expected a finite value >= 0, got {getattr(self, name)!r}")
+        if self.alignment is not None:
+            bad = [m for m in self.alignment.values() if m not in ALIGNMENT_MODES]
+            if bad:
+                raise ValueError(f"alignment: expected modes in {ALIGNMENT_MODES}, got {bad[0]!r}")
+
+    @classmethod
+    def improved(cls, **overrides: object) -> "SamplerConfig":
+        """The improved scheme (module docstring): scale fitted to the boxes, coordinate-wise annealed moves,
+        ``surface_weight=100``, ``keep_in_box=True``; ``overrides`` replace any of these."""
+        opts: dict[str, object] = {"mode": "improved", "initial_wall_height": None, "surface_weight": 100.0,
+                                   "keep_in_box": True}
+        opts.update(overrides)
+        return cls(**opts)  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class SceneEnergies:
+    """The terms of the posterior energy of one hypothesis.
+
+    Attributes
+    ----------
+    surface, orientation : float
+        ``E_s`` (in [0, 1]) and ``E_o``.
+    object_wall, object_object : float
+        ``E_ow`` and ``E_oo`` (m^2) of the context prior.
+    total : float
+        ``w_s E_s + w_o E_o + E_ow + mu E_oo``.
+    """
+
+    surface: float
+    orientation: float
+    object_wall: float
+    object_object: float
+    total: float
+
+    def as_array(self) -> FloatArray:
+        """``(5,)`` float: surface, orientation, object_wall, object_object, total."""
+        return np.array([self.surface, self.orientation, self.object_wall, self.object_object, self.total])
+
+
+@dataclass(frozen=True, eq=False)
+class PosteriorResult:
+    """Result of :func:`map_estimate`.
+
+    Attributes
+    ----------
+    scene : Scene
+        The MAP hypothesis: metric room (``scale * floor``, ceiling, camera
+        height), objects, ``scale``, timing.
+    energies : SceneEnergies
+        Of ``scene``.
+    initial : Scene
+        The initial hypothesis (it may violate the hard constraints).
+    initial_energies : SceneEnergies
+    history : (E + 1, 6) float
+        Per epoch (row 0: the state the sampling starts from, after the
+        repair of an invalid initial hypothesis) the seed's ``E_s, E_o,
+        E_ow, E_oo, total`` and wall height.
+    n_samples : int
+        Hypotheses evaluated.
+    n_invalid : int
+        Of those, how many violated a hard constraint.
+    mode : str
+    seconds : float
+        Wall-clock time of the sampling.
+    """
+
+    scene: Scene
+    energies: SceneEnergies
+    initial: Scene
+    initial_energies: SceneEnergies
+    history: FloatArray
+    n_samples: int
+    n_invalid: int
+    mode: str
+    seconds: float
+
+
+# --------------------------------------------------------------------------- the problem
+
+
+@dataclass
+class _Batch:
+    """Energies and constraint violation of a batch of hypotheses, (B,) each."""
+
+    surface: FloatArray
+    orientation: FloatArray
+    wall: FloatArray
+    overlap: FloatArray
+    total: FloatArray
+    violation: FloatArray
+
+    @property
+    def key(self) -> FloatArray:
+        """Selection key: energy for valid hypotheses, above every valid one for invalid ones."""
+        return np.where(self.violation > 0, _INVALID + self.violation, self.total)
+
+    def energies(self, i: int) -> SceneEnergies:
+        return SceneEnergies(float(self.surface[i]), float(self.orientation[i]), float(self.wall[i]),
+                             float(self.overlap[i]), float(self.total[i]))
+
+
+class _Problem:
+    """Everything fixed during the sampling: room up to scale, objects, energies, constraints."""
+
+    def __init__(self, likelihood: SurfaceLikelihood, objects: Sequence[DetectedObject],
+                 orientation: OrientationLikelihood, cfg: SamplerConfig, image_width: int, image_height: int) -> None:
+        self.lik = likelihood
+        self.cfg = cfg
+        self.floor = np.asarray(likelihood.floor, dtype=np.float64)
+        self.ceiling = float(likelihood.ceiling_z)
+        self.h0 = float(likelihood.camera_height)
+        self.sizes = np.array([o.size for o in objects], dtype=np.float64).reshape(-1, 3)
+        self.size2 = self.sizes[:, :2]
+        self.z = np.array([o.elevation for o in objects]) + 0.5 * self.sizes[:, 2]
+        self.top = self.z + 0.5 * self.sizes[:, 2]
+        self.orientation = orientation
+        align = dict(CLASS_ALIGNMENT if cfg.alignment is None else cfg.alignment)
+        back = frozenset(cfg.back_to_wall)
+        self.modes = ["parallel" if o.symmetric else align.get(o.cls, "parallel") for o in objects]
+        self.weights = np.array([0.0 if o.symmetric else 1.0 for o in objects])
+        self.anchors = np.array([-0.5 * o.size[0] if o.cls in back else 0.0 for o in objects])
+        self.n = len(objects)
+        left, right = _box_lon(objects, image_width, image_height)
+        self.box_mid = 0.5 * (left + right)
+        self.box_half = np.where(right - left < np.pi, 0.5 * (right - left), np.inf)  # no limit for huge boxes
+
+    def evaluate(self, lam: FloatArray, xy: FloatArray, yaw: FloatArray) -> _Batch:
+        """Energies of hypotheses ``lam (B,)``, ``xy (B, N, 2)``, ``yaw (B, N)``."""
+        cfg = self.cfg
+        b = len(lam)
+        if self.n == 0:
+            zero = np.zeros(b)
+            es = np.full(b, 1.0 - self.lik.room_correct / max(self.lik.observation.n_pix, 1))
+            return _Batch(es, zero, zero, zero, cfg.surface_weight * es, zero)
+        centers = np.concatenate([xy, np.broadcast_to(self.z, (b, self.n))[..., None]], axis=-1)
+        es = self.lik(centers, self.sizes, yaw, lam).energy
+        eo = self.orientation(yaw)
+        floors = lam[:, None, None] * self.floor
+        ctx = context_energy(xy, yaw, self.size2, floors, nu_n=cfg.nu_n, mu=cfg.mu, alignment=self.modes,
+                             alignment_weights=self.weights, anchor_offsets=self.anchors)
+        total = cfg.surface_weight * es + cfg.orientation_weight * eo + ctx.total
+        viol = self._violation(lam, xy, yaw, ctx.pair_overlap)
+        return _Batch(es, eo, np.asarray(ctx.wall, dtype=np.float64), np.asarray(ctx.overlap, dtype=np.float64),
+                      total, viol)
+
+    def _violation(self, lam: FloatArray, xy: FloatArray, yaw: FloatArray, pair: FloatArray) -> FloatArray:
+        cfg = self.cfg
+        rects = oriented_rectangles(xy, yaw, np.broadcast_to(self.size2, xy.shape))
+        unit = rects / lam[:, None, None, None]
+        tol = cfg.wall_tol / float(lam.max())
+        inside = convex_in_polygon(unit, self.floor, tol=tol)
+        viol = np.zeros(len(lam))
+        if not np.all(inside):
+            bi, oi = np.nonzero(~inside)
+            pts = unit[bi, oi]  # (K, 4, 2)
+            out = ~points_in_polygon(pts, self.floor)
+            depth = np.where(out, distance_to_boundary(pts, self.floor), 0.0).sum(axis=-1) * lam[bi]
+            viol += np.bincount(bi, weights=0.01 + depth, minlength=len(lam))
+        iu, ju = np.triu_indices(self.n, k=1)
+        if len(iu):
+            viol += np.maximum(pair[:, iu, ju] - cfg.overlap_tol, 0.0).sum(axis=-1)
+        near, _ = _rect_distance(xy, yaw, np.broadcast_to(self.size2, xy.shape))
+        viol += np.maximum(cfg.camera_clearance - near, 0.0).sum(axis=-1)
+        viol += np.maximum(self.top[None, :] - lam[:, None] * self.ceiling, 0.0).sum(axis=-1)
+        if cfg.keep_in_box:
+            lon = np.arctan2(-xy[..., 1], xy[..., 0])
+            off = np.abs(np.angle(np.exp(1j * (lon - self.box_mid))))
+            viol += np.maximum(off - self.box_half, 0.0).sum(axis=-1)
+        return viol
+
+    def object_ok(self, lam: FloatArray, xy: FloatArray, yaw: FloatArray) -> NDArray[np.bool_]:
+        """(B, N): footprint inside the room and clear of the camera (pairs not considered)."""
+        size2 = np.broadcast_to(self.size2, xy.shape)
+        rects = oriented_rectangles(xy, yaw, size2) / lam[:, None, None, None]
+        inside = convex_in_polygon(rects, self.floor, tol=self.cfg.wall_tol / float(lam.max()))
+        near, _ = _rect_distance(xy, yaw, size2)
+        return inside & (near >= self.cfg.camera_clearance)
+
+    def repair(self, lam: float, xy: FloatArray, yaw: FloatArray,
+               grow_scale: bool) -> tuple[float, FloatArray, FloatArray]:
+        """A nearby hypothesis that satisfies the hard constraints, if a simple search finds one.
+
+        1. The scale grows until every object is below the ceiling.
+        2. With ``grow_scale``, the scale grows (1 cm wall-height steps, up to
+           the top of the range) to the smallest value at which the most
+           objects fit in the room.
+        3. An object through a wall or on the camera slides along its
+           viewing ray, to the nearest distance where it fits; if none,
+           it also turns (up to 6 degrees) and moves sideways (up to
+           15 cm), the smallest change that fits.
+        4. Of two overlapping objects, the farther one slides away from the
+           camera (or, if it cannot, the nearer one towards it) by the
+           smallest step that separates them.
+
+        Steps 3-4 are repeated until nothing changes; the result may still
+        violate a constraint (the sampler then looks for valid samples).
+        """
+        lo_h, hi_h = (float(v) for v in self.cfg.wall_height_range)
+        lam_hi = max(hi_h / self.ceiling, lam)
+        if self.n:
+            lam = float(np.clip(max(lam, float(self.top.max()) / self.ceiling), None, lam_hi))
+        xy, yaw = xy.copy(), yaw.copy()
+        if self.n == 0:
+            return lam, xy, yaw
+        if grow_scale and not np.all(self.object_ok(np.array([lam]), xy[None], yaw[None])):
+            grid = np.arange(lam * self.ceiling, hi_h + 1e-9, 0.01) / self.ceiling
+            if len(grid):
+                fits = self.object_ok(grid, np.broadcast_to(xy, (len(grid), self.n, 2)),
+                                      np.broadcast_to(yaw, (len(grid), self.n))).sum(axis=1)
+                lam = float(grid[int(np.argmax(fits))])  # the smallest scale at which the most objects fit
+        along, _, dist = _ray_frames(xy)
+        # candidate distances along each ray: the current one first, then alternately nearer and farther
+        offsets = np.concatenate([[0.0], np.ravel(np.column_stack([-np.arange(1, 301), np.arange(1, 301)]))]) * 0.01
+        lam_a = np.array([lam])
+        for _ in range(20):
+            changed = False
+            ok = self.object_ok(lam_a, xy[None], yaw[None])[0]
+            for j in np.flatnonzero(~ok):
+                r = np.maximum(dist[j] + offsets, 0.05)
+                cand = np.broadcast_to(xy, (len(r), self.n, 2)).copy()
+                cand[:, j] = r[:, None] * along[j]
+                fit = self.object_ok(np.full(len(r), lam), cand, np.broadcast_to(yaw, (len(r), self.n)))[:, j]
+                if np.any(fit):
+                    k = int(np.argmax(fit))
+                    xy[j], dist[j], changed = cand[k, j], r[k], True
+                    continue
+                # no fit along the ray: search small turns and sideways moves too, least change first
+                da, dc, dy = np.meshgrid(np.arange(-15, 16) * 0.02, np.arange(-5, 6) * 0.03,
+                                         np.radians(np.arange(-6, 7)), indexing="ij")
+                da, dc, dy = da.ravel(), dc.ravel(), dy.ravel()
+                cost = (da / 0.1) ** 2 + (dc / 0.03) ** 2 + (dy / np.radians(2.0)) ** 2
+                order = np.argsort(cost, kind="stable")
+                da, dc, dy = da[order], dc[order], dy[order]
+                across = np.array([-along[j, 1], along[j, 0]])
+                cand = np.broadcast_to(xy, (len(da), self.n, 2)).copy()
+                cand[:, j] = xy[j] + da[:, None] * along[j] + dc[:, None] * across
+                yaws = np.broadcast_to(yaw, (len(da), self.n)).copy()
+                yaws[:, j] += dy
+                fit = self.object_ok(np.full(len(da), lam), cand, yaws)[:, j]
+                if np.any(fit):
+                    k = int(np.argmax(fit))
+                    xy[j], yaw[j], changed = cand[k, j], yaws[k, j], True
+                    along, _, dist = _ray_frames(xy)
+            pair = pair_overlap_areas(xy, yaw, self.size2)
+            iu, ju = np.nonzero(np.triu(pair > self.cfg.overlap_tol, k=1))
+            for a, b in zip(iu, ju):
+                far, near = (a, b) if dist[a] >= dist[b] else (b, a)
+                for j, sign in ((far, 1.0), (near, -1.0)):
+                    r = np.maximum(dist[j] + sign * np.arange(1, 301) * 0.01, 0.05)
+                    cand = np.broadcast_to(xy, (len(r), self.n, 2)).copy()
+                    cand[:, j] = r[:, None] * along[j]
+                    yaws = np.broadcast_to(yaw, (len(r), self.n))
+                    fit = self.object_ok(np.full(len(r), lam), cand, yaws)[:, j]
+                    fit &= pair_overlap_areas(cand, yaws, self.size2)[:, a, b] <= self.cfg.overlap_tol
+                    if np.any(fit):
+                        k = int(np.argmax(fit))
+                        xy[j], dist[j], changed = cand[k, j], r[k], True
+                        break
+            if not changed:
+                break
+        return lam, xy, yaw
+
+    def scene(self, lam: float, xy: FloatArray, yaw: FloatArray, objects: Sequence[DetectedObject],
+              seconds: float | None = None) -> Scene:
+        objs = []
+        for j, o in enumerate(objects):
+            objs.append(SceneObject(id=o.id or f"{o.cls}-{j}", cls=o.cls, center=[xy[j, 0], xy[j, 1], self.z[j]],
+                                    size=o.size, yaw=float(yaw[j]), model_id=o.model_id, score=o.score,
+                                    bbox_pano=o.bbox_pano))
+        return Scene(floor=lam * self.floor, ceiling_z=lam * self.ceiling, camera_height=lam * self.h0,
+                     objects=tuple(objs), scale=lam, timing={} if seconds is None else {"sampling": seconds})
+
+
+def _ray_frames(xy: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Unit vectors along and across the camera-object ray and the distance, for (..., N, 2) positions."""
+    d = np.hypot(xy[..., 0], xy[..., 1])
+    safe = np.maximum(d, 1e-9)
+    along = xy / safe[..., None]
+    across = np.stack([-along[..., 1], along[..., 0]], axis=-1)
+    return along, across, d
+
+
+def _unique_ids(objects: Sequence[DetectedObject]) -> list[DetectedObject]:
+    """Objects with ids ``<cls>-<k>`` filled in where missing (k counts per class)."""
+    out, seen, count = [], set(), {}  # type: ignore[var-annotated]
+    for o in objects:
+        oid = o.id
+        if oid is None:
+            k = count.get(o.cls, 0)
+            while f"{o.cls}-{k}" in seen:
+                k += 1
+            oid = f"{o.cls}-{k}"
+            count[o.cls] = k + 1
+        if oid in seen:
+            raise ValueError(f"objects: expected unique ids, got {oid!r} twice")
+        seen.add(oid)
+        out.append(DetectedObject(o.cls, o.bbox_pano, o.size, o.yaw, o.model_id, oid, o.score, o.elevation,
+                                  o.symmetric))
+    return out
+
+
+# --------------------------------------------------------------------------- the sampler
+
+
+def map_estimate(likelihood: SurfaceLikelihood, objects: Sequence[DetectedObject], *, image_width: int,
+                 image_height: int, orientation: OrientationSpec = None, config: SamplerConfig | None = None,
+                 rng: int | np.random.Generator | None = 0) -> PosteriorResult:
+    """MAP scale, object positions and yaws by epoch sampling (paper Sec. 3.4 / 4).
+
+    Parameters
+    ----------
+    likelihood : SurfaceLikelihood
+        ``E_s`` for the room up to scale (:func:`layout.likelihood.surface_likelihood`).
+    objects : sequence of DetectedObject
+        Detections with their retrieved model sizes and pose estimates.
+    image_width, image_height : int
+        Size of the panorama the boxes refer to.
+    orientation : E_o specification
+        See :func:`layout.likelihood.orientation_likelihood` (None: E_o = 0).
+    config : SamplerConfig, optional
+        Default: the paper's scheme, 8 epochs x 25 samples.
+    rng : int, numpy Generator or None
+        The only source of randomness (a seed gives the same result).
+
+    Returns
+    -------
+    PosteriorResult
+
+    Raises
+    ------
+    PosteriorError
+        When no sampled hypothesis satisfied the hard constraints.
+
+    Convention: see the module docstring.
+
+    Examples
+    --------
+    A 5 m x 3.5 m room known up to scale (camera height assumed 1.6 m, so
+    the wall height is 2.7 m at scale 1); really the camera is 1.5 m high
+    and a TV of known size stands against the far wall:
+
+    >>> from layout.likelihood import observe_labels, render_scene_labels, surface_likelihood
+    >>> room = np.array([[-2.0, -1.5], [3.0, -1.5], [3.0, 2.0], [-2.0, 2.0]])
+    >>> lam = 1.5 / 1.6  # the true scale: wall height 2.53 m
+    >>> labels = render_scene_labels(room * lam, 2.7 * lam, 1.5, [[3 * lam - 0.1, 0.0, 0.3]], [[0.2, 0.8, 0.6]],
+    ...                              [np.pi], width=256, object_label=0)
+    >>> box = [121.81, 76.5, 134.19, 85.24]  # the TV's detection box
+    >>> es = surface_likelihood(observe_labels(labels, [box], object_pixels="matched"), room, 2.7, 1.6)
+    >>> tv = DetectedObject("tv", box, [0.2, 0.8, 0.6], np.pi)
+    >>> res = map_estimate(es, [tv], image_width=256, image_height=128, config=SamplerConfig.improved(), rng=0)
+    >>> round(res.scene.wall_height, 2), round(res.scene.camera_height, 2), (res.scene.objects[0].center.round(2) + 0.0)
+    (2.53, 1.5, array([2.71, 0.  , 0.3 ]))
+    """
+    cfg = SamplerConfig() if config is None else config
+    if not isinstance(likelihood, SurfaceLikelihood):
+        raise ValueError(f"likelihood: expected a SurfaceLikelihood, got {type(likelihood).__name__}")
+    for o in objects:
+        if not isinstance(o, DetectedObject):
+            raise ValueError(f"objects: expected DetectedObject items, got {type(o).__name__}")
+    objs = _unique_ids(list(objects))
+    g = as_generator(rng)
+    t0 = time.perf_counter()
+    eo = orientation_likelihood(orientation, [o.cls for o in objs])
+    prob = _Problem(likelihood, objs, eo, cfg, image_width, image_height)
+    n = prob.n
+    init = initialise_objects(objs, image_width, image_height)
+    yaw_pose = init.yaws.copy()
+    lo_h, hi_h = (float(v) for v in cfg.wall_height_range)
+    xy = init.centers[:, :2].copy()
+    if cfg.initial_wall_height is not None:
+        lam0 = cfg.initial_wall_height / prob.ceiling
+    else:
+        est = init.fitted_camera_heights[np.isfinite(init.fitted_camera_heights)]
+        lam0 = float(np.median(est)) / prob.h0 if est.size else 1.0
+        lam0 = float(np.clip(lam0, lo_h / prob.ceiling, hi_h / prob.ceiling))
+        if n:  # positions from all four box edges at that camera height
+            xy = fit_boxes(objs, init.centers, image_width, image_height, camera_height=lam0 * prob.h0)[0][:, :2]
+    yaw = init.yaws.copy()
+    lam = lam0
+    initial = prob.evaluate(np.array([lam]), xy[None], yaw[None])
+    initial_energies = initial.energies(0)
+    initial_scene = prob.scene(lam, xy, yaw, objs)
+    if initial.violation[0] > 0:
+        lam, xy, yaw = prob.repair(lam, xy, yaw, grow_scale=cfg.initial_wall_height is not None)
+    seed = prob.evaluate(np.array([lam]), xy[None], yaw[None])
+    seed_key = float(seed.key[0])
+    n_eval, n_invalid = 2, int(initial.violation[0] > 0) + int(seed.violation[0] > 0)
+    s = int(cfg.samples_per_epoch)
+
+    if cfg.mode == "paper":
+        epochs = int(cfg.epochs) if cfg.n_samples is None else max(1, int(cfg.n_samples) // s)
+    else:
+        per_epoch = s + n * s + (1 if n > 1 else 0)
+        epochs = int(cfg.epochs) if cfg.n_samples is None else max(1, (int(cfg.n_samples) - 1) // per_epoch)
+    history = np.zeros((epochs + 1, 6))
+    history[0] = np.append(seed.energies(0).as_array(), lam * prob.ceiling)
+
+    state = _State(lam, xy, yaw, seed_key, seed)
+    for ep in range(epochs):
+        if cfg.mode == "paper":
+            evaluated, invalid = _paper_epoch(prob, state, yaw_pose, g)
+        else:
+            evaluated, invalid = _improved_epoch(prob, state, cfg.anneal_to ** (ep / max(epochs - 1, 1)), g)
+        n_eval += evaluated
+        n_invalid += invalid
+        history[ep + 1] = np.append(state.batch.energies(0).as_array(), state.lam * prob.ceiling)
+    lam, xy, yaw = state.lam, state.xy, state.yaw
+
+    seconds = time.perf_counter() - t0
+    final = prob.evaluate(np.array([lam]), xy[None], yaw[None])
+    if final.violation[0] > 0:
+        raise PosteriorError(
+            f"expected a hypothesis with every object inside the room, no overlaps beyond {cfg.overlap_tol} m^2, "
+            f"the camera {cfg.camera_clearance} m clear and objects below the ceiling"
+            f"{' and on their boxes' if cfg.keep_in_box else ''}; got none in {n_eval} samples "
+            f"(best violation {float(final.violation[0]):.3g})")
+    return PosteriorResult(scene=prob.scene(lam, xy, yaw, objs, seconds), energies=final.energies(0),
+                           initial=initial_scene, initial_energies=initial_energies, history=history,
+                           n_samples=n_eval, n_invalid=n_invalid, mode=cfg.mode, seconds=seconds)
+
+
+def _take(b: _Batch, i: int) -> _Batch:
+    """Row ``i`` of a batch as a batch of one."""
+    sl = slice(i, i + 1)
+    return _Batch(b.surface[sl], b.orientation[sl], b.wall[sl], b.overlap[sl], b.total[sl], b.violation[sl])
+
+
+@dataclass
+class _State:
+    """The seed of the sampling: scale, positions (N, 2), yaws (N,), selection key and energies."""
+
+    lam: float
+    xy: FloatArray
+    yaw: FloatArray
+    key: float
+    batch: _Batch
+
+    def offer(self, res: _Batch, k: int, lam: float, xy: FloatArray, yaw: FloatArray) -> None:
+        """Take row ``k`` of ``res`` (hypothesis ``lam, xy, yaw``) when it beats the seed."""
+        if res.key[k] < self.key:
+            self.lam, self.xy, self.yaw, self.key = float(lam), xy.copy(), yaw.copy(), float(res.key[k])
+            self.batch = _take(res, k)
+
+
+def _paper_epoch(prob: _Problem, st: _State, yaw_pose: FloatArray, g: np.random.Generator) -> tuple[int, int]:
+    """One epoch of the paper's scheme: every sample moves the scale and every object. (evaluated, invalid)."""
+    cfg, n, s = prob.cfg, prob.n, int(prob.cfg.samples_per_epoch)
+    lo_h, hi_h = (float(v) for v in cfg.wall_height_range)
+    lam_s = g.uniform(lo_h, hi_h, size=s) / prob.ceiling
+    along, across, d = _ray_frames(st.xy)
+    sd_a = np.sqrt(cfg.position_variance[0] * d)
+    sd_c = np.sqrt(cfg.position_variance[1] * d)
+    xy_s = (st.xy[None] + g.normal(size=(s, n, 1)) * sd_a[None, :, None] * along[None]
+            + g.normal(size=(s, n, 1)) * sd_c[None, :, None] * across[None])
+    yaw_s = yaw_pose[None] + g.normal(0.0, math.sqrt(cfg.yaw_variance), size=(s, n))
+    res = prob.evaluate(lam_s, xy_s, yaw_s)
+    k = int(np.argmin(res.key))
+    st.offer(res, k, lam_s[k], xy_s[k], yaw_s[k])
+    return s, int(np.count_nonzero(res.violation > 0))
+
+
+def _improved_epoch(prob: _Problem, st: _State, shrink: float, g: np.random.Generator) -> tuple[int, int]:
+    """One epoch of the improved scheme (scale-only moves, then one-object moves). (evaluated, invalid)."""
+    cfg, n, s = prob.cfg, prob.n, int(prob.cfg.samples_per_epoch)
+    lo_h, hi_h = (float(v) for v in cfg.wall_height_range)
+    hs = np.clip(st.lam * prob.ceiling + g.normal(0.0, cfg.wall_height_sigma * shrink, size=s), lo_h, hi_h)
+    hs = np.where(g.random(s) < 0.2, g.uniform(lo_h, hi_h, size=s), hs)
+    lam_s = hs / prob.ceiling
+    res = prob.evaluate(lam_s, np.broadcast_to(st.xy, (s, n, 2)), np.broadcast_to(st.yaw, (s, n)))
+    k = int(np.argmin(res.key))
+    st.offer(res, k, lam_s[k], st.xy, st.yaw)
+    evaluated, invalid = s, int(np.count_nonzero(res.violation > 0))
+    if n == 0:
+        return evaluated, invalid
+    # proposal (j, i) moves object j only
+    along, across, d = _ray_frames(st.xy)
+    sd_a = np.sqrt(cfg.position_variance[0] * d) * shrink
+    sd_c = np.sqrt(cfg.position_variance[1] * d) * shrink
+    jj = np.arange(n)
+    xy_s = np.broadcast_to(st.xy, (n, s, n, 2)).copy()
+    yaw_s = np.broadcast_to(st.yaw, (n, s, n)).copy()
+    xy_s[jj, :, jj] += (g.normal(size=(n, s, 1)) * sd_a[:, None, None] * along[:, None, :]
+                        + g.normal(size=(n, s, 1)) * sd_c[:, None, None] * across[:, None, :])
+    yaw_s[jj, :, jj] += g.normal(0.0, math.sqrt(cfg.yaw_variance) * shrink, size=(n, s))
+    res = prob.evaluate(np.full(n * s, st.lam), xy_s.reshape(n * s, n, 2), yaw_s.reshape(n * s, n))
+    evaluated += n * s
+    invalid += int(np.count_nonzero(res.violation > 0))
+    key = res.key.reshape(n, s)
+    best = np.argmin(key, axis=1)
+    better = np.flatnonzero(key[jj, best] < st.key)
+    if better.size == 0:
+        return evaluated, invalid
+    top = int(better[np.argmin(key[better, best[better]])])
+    if better.size > 1:  # all improving one-object moves at once, if that is better still
+        xy_c, yaw_c = st.xy.copy(), st.yaw.copy()
+        xy_c[better] = xy_s[better, best[better], better]
+        yaw_c[better] = yaw_s[better, best[better], better]
+        comb = prob.evaluate(np.array([st.lam]), xy_c[None], yaw_c[None])
+        evaluated += 1
+        invalid += int(comb.violation[0] > 0)
+        if comb.key[0] <= key[top, best[top]]:
+            st.offer(comb, 0, st.lam, xy_c, yaw_c)
+            return evaluated, invalid
+    st.offer(res, top * s + int(best[top]), st.lam, xy_s[top, best[top]], yaw_s[top, best[top]])
+    return evaluated, invalid

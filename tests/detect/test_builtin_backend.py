@@ -1,0 +1,156 @@
+"""Builtin detector, running side: committed weights, the Detector protocol, spec, a stored room, training CLI."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from detect.backends import ModelFileError, get_detector  # noqa: E402
+from detect.builtin import DEFAULT_WEIGHTS, BuiltinDetector, NetConfig, build_network, builtin_views, from_spec  # noqa: E402
+from detect.builtin.backend import load_record, save_weights  # noqa: E402
+from detect.builtin.evaluate import evaluate, load_ground_truth  # noqa: E402
+from detect.detection import BatchDetector, ImageDetection  # noqa: E402
+from detect.tiles import detect_panorama  # noqa: E402
+
+ROOM = Path(__file__).resolve().parent / "data" / "builtin_room"
+
+
+@pytest.fixture(scope="module")
+def det():
+    return BuiltinDetector()
+
+
+def test_committed_weights_and_record(det):
+    assert DEFAULT_WEIGHTS.stat().st_size < 5 * 2 ** 20
+    rec = load_record()
+    assert rec["weights"] == "builtin.pt" and rec["classes"] == list(det.classes)
+    assert rec["network"]["parameters"] == sum(p.numel() for p in det._net.parameters())
+    assert rec["data"]["train_seed"] >= 3000 and rec["data"]["val_seed"] >= 3000  # never the seed-0 evaluation set
+    assert rec["training"]["tiles_seen"] == rec["training"]["iterations"] * rec["training"]["batch"]
+    assert 0.0 < rec["score_threshold"] < 1.0 and det.score_threshold == rec["score_threshold"]
+    assert isinstance(det, BatchDetector)
+
+
+def test_batch_equals_single_and_boxes_stay_in_the_image(det):
+    rng = np.random.default_rng(0)
+    a = rng.integers(0, 255, (160, 160, 3)).astype(np.uint8)
+    b = np.ascontiguousarray(np.repeat(np.repeat(a[:100, :120], 2, 0), 2, 1))  # 200 x 240, another size
+    low = BuiltinDetector(score_threshold=0.01)
+    batch = low.detect_batch([a, b])
+    single = [low.detect(a), low.detect(b)]
+    for got, ref, img in zip(batch, single, (a, b)):
+        assert [d.label for d in got] == [d.label for d in ref]
+        assert np.allclose([d.score for d in got], [d.score for d in ref], atol=1e-4)
+        for d in got:
+            assert isinstance(d, ImageDetection)
+            assert 0 <= d.box[0] < d.box[2] <= img.shape[1] and 0 <= d.box[1] < d.box[3] <= img.shape[0]
+    assert low.detect_batch([]) == []
+
+
+def test_plain_grey_tile_has_no_objects(det):
+    assert det.detect(np.full((160, 160, 3), 140, np.uint8)) == []
+
+
+def test_inputs_and_files_are_checked(tmp_path, det):
+    with pytest.raises(ValueError, match=r"images\[0\]: expected an \(h, w, 3\) uint8 RGB image, got shape"):
+        det.detect(np.zeros((160, 160, 3), np.float32))
+    with pytest.raises(ModelFileError, match="builtin detector weights not found"):
+        BuiltinDetector(tmp_path / "none.pt")
+    junk = tmp_path / "junk.pt"
+    junk.write_bytes(b"not a torch file")
+    with pytest.raises(ModelFileError, match="junk.pt: not builtin detector weights"):
+        BuiltinDetector(junk)
+    with pytest.raises(ValueError, match=r"score_threshold: expected a number in \[0, 1\], got 2"):
+        BuiltinDetector(score_threshold=2)
+
+
+def test_spec_options():
+    d = from_spec(None, {"score": "0.6", "max_detections": "3"})
+    assert d.score_threshold == 0.6 and d.max_detections == 3
+    with pytest.raises(ValueError, match=r"builtin detector: unknown option\(s\) \['iou'\]"):
+        from_spec(None, {"iou": "0.5"})
+    assert isinstance(get_detector("builtin?score=0.5"), BuiltinDetector)
+    assert get_detector(f"builtin:{DEFAULT_WEIGHTS}").weights == DEFAULT_WEIGHTS
+
+
+def test_save_and_load_round_trip(tmp_path):
+    torch.manual_seed(0)
+    cfg = NetConfig(("tv", "bed"), (4, 4, 8, 8, 8), 8, 64)
+    net = build_network(cfg).eval()
+    path = save_weights(net, cfg, tmp_path / "w.pt")
+    d = BuiltinDetector(path, score_threshold=0.0, max_detections=5)
+    assert d.classes == ("tv", "bed") and d.input_size == 64 and d.record == {}
+    x = torch.rand(2, 3, 64, 64)
+    with torch.no_grad():
+        for a, b in zip(net(x), d._net(x)):
+            assert torch.allclose(a, b)
+    assert len(d.detect(np.zeros((64, 64, 3), np.uint8))) == 5
+
+
+def test_views():
+    v = builtin_views(160)
+    assert len(v) == 24 and all((x.width, x.height) == (160, 160) for x in v)
+    assert np.rad2deg(max(x.fov for x in v)) == pytest.approx(130.0)
+
+
+def test_stored_room_is_found(det):
+    """A held-back synthetic room (seed 4100, never trained on): its clearly visible objects are found."""
+    import cv2
+
+    pano = cv2.cvtColor(cv2.imread(str(ROOM / "pano.jpg")), cv2.COLOR_BGR2RGB)
+    truth = load_ground_truth(ROOM)
+    dets = detect_panorama(pano, det, views=det.views())
+    res = evaluate({truth.name: dets}, [truth])
+    found = [c for c, r in res.classes.items() if r.n_gt and r.tp_at_best_f1 == r.n_gt]
+    assert res.mean_ap >= 0.6, res
+    assert len(found) >= 0.5 * sum(1 for r in res.classes.values() if r.n_gt), res
+
+
+def _fake_rooms(root: Path, seed: int, n: int = 1) -> Path:
+    """Room folders with painted objects, as `pano2cad synth` writes them (a tv and a bed)."""
+    import cv2
+
+    from panogeom.boxes import mask_to_pano_box
+    from panogeom.coords import pixel_grid, pixel_to_lonlat
+
+    root.mkdir(parents=True)
+    W, H = 256, 128
+    ll = np.rad2deg(pixel_to_lonlat(pixel_grid(W, H), W, H))
+    for i in range(n):
+        d = root / f"room-{i:04d}"
+        d.mkdir()
+        rgb = np.full((H, W, 3), 120, np.uint8)
+        inst = np.zeros((H, W), np.uint16)
+        objs = []
+        for k, (label, lon, lat, colour) in enumerate((("tv", 30 + 50 * i, 0, (20, 20, 20)),
+                                                        ("bed", -90, -30, (200, 40, 40)))):
+            m = (np.abs(ll[..., 0] - lon) < 15) & (np.abs(ll[..., 1] - lat) < 10)
+            rgb[m] = colour
+            inst[m] = k + 1
+            objs.append({"class": label, "bbox_pano": mask_to_pano_box(m).tolist(), "visible_px": int(m.sum())})
+        cv2.imwrite(str(d / "pano.png"), rgb[..., ::-1])
+        cv2.imwrite(str(d / "instances.png"), inst)
+        (d / "gt.json").write_text(json.dumps({"image": {"width": W, "height": H}, "objects": objs}))
+    (root / "index.json").write_text(json.dumps({"seed": seed}))
+    return root
+
+
+def test_training_cli_writes_weights_and_record(tmp_path):
+    from detect.builtin.train import main
+
+    data = _fake_rooms(tmp_path / "train", 3000, 2)
+    val = _fake_rooms(tmp_path / "val", 3500)
+    out = tmp_path / "w"
+    assert main(["--data", str(data), "--val", str(val), "--out", str(out), "--iterations", "2",
+                 "--batch", "2", "--size", "64"]) == 0
+    rec = json.loads((out / "builtin.json").read_text())
+    assert rec["training"]["iterations"] == 2 and rec["data"]["train_rooms"] == 2
+    assert rec["data"]["train_seed"] == 3000 and set(rec["validation"]["ap"]) == set(rec["classes"])
+    assert BuiltinDetector(out / "builtin.pt").input_size == 64
+    seed0 = _fake_rooms(tmp_path / "seed0", 0)
+    assert main(["--data", str(seed0), "--val", str(val), "--out", str(out), "--iterations", "1"]) == 2

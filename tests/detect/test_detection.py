@@ -1,0 +1,90 @@
+"""Detection records and protocols: validation, seam-aware helpers, JSON form."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from detect.detection import (BatchDetector, Detection, Detector, ImageDetection, PanoramaDetector, TileBox,
+                              check_label)
+from panogeom.perspective import PinholeView
+
+
+def test_image_detection_validates_and_freezes():
+    d = ImageDetection("chair", 0.5, [1, 2, 3, 4])
+    assert d.box.dtype == np.float64 and not d.box.flags.writeable
+    with pytest.raises(ValueError, match=r"u0 < u1 and v0 < v1, got \[3.0, 2.0, 1.0, 4.0\]"):
+        ImageDetection("chair", 0.5, [3, 2, 1, 4])
+    with pytest.raises(ValueError, match=r"score: expected a number in \[0, 1\], got 1.5"):
+        ImageDetection("chair", 1.5, [1, 2, 3, 4])
+    with pytest.raises(ValueError, match="lowercase word"):
+        ImageDetection("Chair", 0.5, [1, 2, 3, 4])
+    with pytest.raises(ValueError, match=r"box: expected shape \(4,\), got \(3,\)"):
+        ImageDetection("chair", 0.5, [1, 2, 3])
+
+
+def test_image_detection_clipped():
+    d = ImageDetection("tv", 0.9, [-5, 10, 50, 120])
+    assert d.clipped(40, 100).box.tolist() == [0.0, 10.0, 40.0, 100.0]
+    assert d.clipped(40, 5) is None
+
+
+def test_detection_box_rules_and_seam_helpers():
+    d = Detection("table", 0.8, [2000, 600, 40, 700], 2048, 1024)
+    assert d.wraps and d.width_px == 88.0
+    assert d.center_px.tolist() == [(2000 + 44) % 2048, 650.0]
+    plain = Detection("table", 0.8, [100, 600, 140, 700], 2048, 1024)
+    assert not plain.wraps and plain.width_px == 40.0
+    full = Detection("bed", 0.8, [0, 900, 2048, 1024], 2048, 1024)
+    assert full.width_px == 2048.0
+    with pytest.raises(ValueError, match=r"in a 2048x1024 panorama .* got \[2048.0, 600.0, 40.0, 700.0\]"):
+        Detection("table", 0.8, [2048, 600, 40, 700], 2048, 1024)
+    with pytest.raises(ValueError, match="u0 != u1"):
+        Detection("table", 0.8, [40, 600, 40, 700], 2048, 1024)
+    with pytest.raises(ValueError, match="W == 2\\*H, got W=2048, H=1000"):
+        Detection("table", 0.8, [0, 600, 40, 700], 2048, 1000)
+
+
+def test_detection_mask_and_json():
+    m = np.zeros((8, 16), bool)
+    m[2, 3] = True
+    d = Detection("chair", 0.25, [1, 1, 5, 4], 16, 8).with_mask(m)
+    m[2, 3] = False  # the record keeps its own read-only copy
+    assert d.mask[2, 3] and not d.mask.flags.writeable
+    assert d.to_json() == {"class": "chair", "score": 0.25, "bbox_pano": [1.0, 1.0, 5.0, 4.0]}
+    with pytest.raises(ValueError, match=r"mask: expected a \(8, 16\) bool array, got shape \(8, 8\)"):
+        d.with_mask(np.zeros((8, 8), bool))
+
+
+def test_tilebox_and_support():
+    v = PinholeView(0.0, 0.0, 0.0, np.pi / 2, 10, 10)
+    t = TileBox(v, [1, 1, 4, 4], index=3, truncated=False)
+    d = Detection("tv", 1.0, [1, 1, 5, 4], 16, 8, tile=t, support=2)
+    assert d.tile.index == 3 and d.support == 2
+    with pytest.raises(ValueError, match="support: expected a positive integer, got 0"):
+        Detection("tv", 1.0, [1, 1, 5, 4], 16, 8, support=0)
+
+
+def test_check_label():
+    assert check_label("computer_mouse") == "computer_mouse"
+    for bad in ("", "two words", "Chair", 3, "9lives"):
+        with pytest.raises(ValueError, match="lowercase word"):
+            check_label(bad)
+
+
+def test_protocols_are_structural():
+    class One:
+        def detect(self, image):
+            return []
+
+    class Many(One):
+        def detect_batch(self, images):
+            return [[] for _ in images]
+
+    class Pano:
+        def detect_panorama(self, pano):
+            return []
+
+    assert isinstance(One(), Detector) and not isinstance(One(), BatchDetector)
+    assert isinstance(Many(), BatchDetector)
+    assert isinstance(Pano(), PanoramaDetector) and not isinstance(Pano(), Detector)

@@ -1,0 +1,183 @@
+"""Overlap and NMS on the sphere: exact forms against brute force, seam and poles, merging across tiles."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from detect.detection import Detection, ImageDetection
+from detect.nms import (box_iou, box_nms, nms_sphere, pano_box_iou, pano_box_solid_angle, region_contains,
+                        solid_angle, spherical_overlaps)
+from detect.tiles import box_in_view, to_panorama
+from panogeom.coords import pixel_grid_rays
+from panogeom.perspective import PinholeView, detection_views
+
+W, H = 512, 256
+
+
+def _brute_iou(a_mask: np.ndarray, b_mask: np.ndarray) -> float:
+    """IoU by summing cos(lat)-weighted pixels of a fine equirectangular grid."""
+    h = a_mask.shape[0]
+    lat = np.pi / 2 - np.pi * (np.arange(h) + 0.5) / h
+    w = np.cos(lat)[:, None]
+    return float((w * (a_mask & b_mask)).sum() / (w * (a_mask | b_mask)).sum())
+
+
+def _brute_rect_iou(a, b, n: int = 400000) -> float:
+    """IoU of two lon/lat rectangles by fine 1-D quadrature (the regions are products of intervals)."""
+    u = (np.arange(n) + 0.5) * W / n
+    v = (np.arange(n) + 0.5) * H / n
+    wv = np.cos(np.pi / 2 - np.pi * v / H)
+
+    def in_u(x):
+        return (u >= x[0]) & (u <= x[2]) if x[2] > x[0] else (u >= x[0]) | (u <= x[2])
+
+    def in_v(x):
+        return (v >= x[1]) & (v <= x[3])
+
+    def area(mu, mv):
+        return mu.sum() * (wv * mv).sum()
+
+    inter = area(in_u(a) & in_u(b), in_v(a) & in_v(b))
+    return float(inter / (area(in_u(a), in_v(a)) + area(in_u(b), in_v(b)) - inter))
+
+
+boxes = st.tuples(st.floats(0, W - 1), st.floats(0, H - 10), st.floats(4, W / 2), st.floats(8, H / 2)).map(
+    lambda t: [t[0], t[1], (t[0] + t[2]) % W or W, min(H, t[1] + t[3])])
+
+
+@settings(max_examples=30, deadline=None)
+@given(boxes, boxes)
+def test_pano_box_iou_matches_brute_force(a, b):
+    exact = pano_box_iou([a], [b], W, H)[0, 0]
+    assert exact == pytest.approx(_brute_rect_iou(a, b), abs=2e-3)
+
+
+@settings(max_examples=30, deadline=None)
+@given(boxes, boxes, st.floats(0, W))
+def test_pano_box_iou_is_invariant_to_turning_around_the_seam(a, b, shift):
+    def turn(x):
+        u0, u1 = (x[0] + shift) % W, (x[2] + shift) % W or W
+        return [u0 if u0 < W else 0.0, x[1], u1, x[3]]
+    assert pano_box_iou([a], [b], W, H)[0, 0] == pytest.approx(pano_box_iou([turn(a)], [turn(b)], W, H)[0, 0],
+                                                               abs=1e-9)
+
+
+def test_solid_angles_are_exact():
+    assert pano_box_solid_angle([[0, 0, W, H]], W, H)[0] == pytest.approx(4 * np.pi)
+    # a 90 degree square tile box covers 1/6 of the sphere
+    v = detection_views(100)[0]
+    whole = to_panorama(ImageDetection("tv", 1.0, [0, 0, 100, 100]), v, W, H)
+    assert solid_angle(whole) == pytest.approx(4 * np.pi / 6)
+
+
+def test_polar_boxes_count_less_than_equatorial_ones():
+    eq = pano_box_solid_angle([[0, 118, 50, 138]], W, H)[0]
+    polar = pano_box_solid_angle([[0, 0, 50, 20]], W, H)[0]
+    assert polar < 0.2 * eq
+
+
+def test_sampled_overlap_of_tile_boxes_matches_brute_force():
+    views = detection_views(200)
+    a = to_panorama(ImageDetection("chair", 1.0, [60, 80, 190, 170]), views[0], W, H)   # yaw 0
+    b = to_panorama(ImageDetection("chair", 1.0, [10, 70, 120, 160]), views[1], W, H)   # yaw 30 deg
+    c = to_panorama(ImageDetection("chair", 1.0, [40, 20, 160, 120]), views[12], W, H)  # low ring, pitch -50
+    rays = pixel_grid_rays(2 * W, 2 * H).reshape(-1, 3)
+    masks = region_contains([a, b, c], rays).reshape(3, 2 * H, 2 * W)
+    iou, inside = spherical_overlaps([a, b, c], samples=24)
+    for i, j in [(0, 1), (0, 2), (1, 2)]:
+        assert iou[i, j] == pytest.approx(_brute_iou(masks[i], masks[j]), abs=0.03)
+    assert np.allclose(iou, iou.T) and np.allclose(np.diag(iou), 1.0)
+    assert 0.0 <= inside.min() and inside.max() <= 1.0 + 1e-9
+
+
+def _same_object_in(view_a, view_b, box_a, label="chair"):
+    """The same object seen in two tiles: box_a in view_a, and its box as seen in view_b."""
+    da = to_panorama(ImageDetection(label, 0.9, box_a), view_a, W, H, index=0)
+    bb = box_in_view(da, view_b)
+    db = to_panorama(ImageDetection(label, 0.7, bb).clipped(view_b.width, view_b.height), view_b, W, H, index=1)
+    return da, db
+
+
+def test_nms_merges_one_object_seen_in_two_tiles_across_the_seam():
+    views = detection_views(200)
+    # views 5 and 6 look at yaw 150 and 180 degrees: the seam (lon = -pi) is in the middle of view 6
+    # (yaw grows to the left in the panorama, so view 5 is right of view 6)
+    da, db = _same_object_in(views[6], views[5], [120, 90, 170, 150])
+    merged = nms_sphere([da, db])
+    assert len(merged) == 1
+    assert merged[0].support == 2 and merged[0].score == 0.9
+    # an object straddling the seam
+    dc, dd = _same_object_in(views[6], views[5], [80, 90, 120, 150])
+    assert dc.wraps
+    assert len(nms_sphere([dc, dd])) == 1
+
+
+def _object_at(yaw_deg, pitch_deg, half=20, label="chair", score=1.0):
+    """An object region: the footprint of a centred box in a virtual view pointing at (yaw, pitch)."""
+    virt = PinholeView(np.deg2rad(yaw_deg), np.deg2rad(pitch_deg), 0.0, np.pi / 2, 200, 200)
+    return to_panorama(ImageDetection(label, score, [100 - half, 100 - half, 100 + half, 100 + half]), virt, W, H)
+
+
+def test_nms_merges_one_object_near_the_nadir_seen_by_two_low_tiles():
+    views = detection_views(200)
+    obj = _object_at(45, -75)  # between views 12 and 13 (pitch -50, yaw 15 and 75 degrees), close to the nadir
+    da = to_panorama(ImageDetection("chair", 0.9, box_in_view(obj, views[12])), views[12], W, H)
+    db = to_panorama(ImageDetection("chair", 0.8, box_in_view(obj, views[13])), views[13], W, H)
+    for d in (da, db):  # both extents span the full width and reach the bottom row
+        assert (d.box[0], d.box[2], d.box[3]) == (0.0, W, H)
+    assert spherical_overlaps([da, db])[0][0, 1] > 0.6
+    assert len(nms_sphere([da, db])) == 1
+    # two different objects on opposite sides of the nadir have full-width extents too, but are not merged
+    far = _object_at(225, -75)
+    other = to_panorama(ImageDetection("chair", 0.7, box_in_view(far, views[15])), views[15], W, H)
+    assert other.box[0] == 0.0 and other.box[2] == W
+    assert pano_box_iou([da.box], [other.box], W, H)[0, 0] > 0.5  # what a lon/lat-box NMS would see
+    assert spherical_overlaps([da, other])[0][0, 1] < 0.05
+    assert len(nms_sphere([da, other])) == 2
+
+
+def test_nms_is_class_aware_and_keeps_separate_objects():
+    views = detection_views(200)
+    da, db = _same_object_in(views[0], views[1], [40, 80, 100, 150])
+    other = to_panorama(ImageDetection("table", 0.95, [40, 80, 100, 150]), views[0], W, H)
+    far = to_panorama(ImageDetection("chair", 0.5, [140, 80, 195, 150]), views[0], W, H)
+    merged = nms_sphere([da, db, other, far])
+    assert sorted((d.label, d.support) for d in merged) == [("chair", 1), ("chair", 2), ("table", 1)]
+    assert len(nms_sphere([da, db, other], class_aware=False)) == 1
+
+
+def test_nms_prefers_a_whole_view_over_a_truncated_one():
+    views = detection_views(200)
+    whole = to_panorama(ImageDetection("sofa", 0.6, [60, 80, 140, 150]), views[0], W, H, index=0)
+    bb = box_in_view(whole, views[2])  # yaw 60 degrees: the object is cut by the tile's left border
+    cut = ImageDetection("sofa", 0.9, bb).clipped(200, 200)
+    part = to_panorama(cut, views[2], W, H, index=2)
+    assert part.tile.truncated and not whole.tile.truncated
+    merged = nms_sphere([part, whole])
+    assert len(merged) == 1
+    assert merged[0].tile.index == 0 and merged[0].score == 0.9
+
+
+def test_nms_checks_its_thresholds():
+    with pytest.raises(ValueError, match=r"iou_threshold: expected a number in \[0, 1\], got 2"):
+        nms_sphere([], iou_threshold=2)
+    assert nms_sphere([]) == []
+
+
+def test_planar_box_nms_per_class():
+    b = [[0, 0, 10, 10], [1, 1, 10, 10], [0, 0, 10, 10]]
+    assert box_nms(b, [0.9, 0.8, 0.7], 0.5).tolist() == [0]
+    assert box_nms(b, [0.9, 0.8, 0.7], 0.5, labels=["a", "a", "b"]).tolist() == [0, 2]
+    assert box_iou([[0, 0, 1, 1]], [[2, 2, 3, 3]])[0, 0] == 0.0
+    with pytest.raises(ValueError, match=r"scores: expected shape \(3,\), got \(2,\)"):
+        box_nms(b, [0.9, 0.8])
+
+
+def test_region_of_a_rect_detection_contains_its_pixels():
+    d = Detection("bed", 1.0, [500, 100, 20, 140], W, H)
+    rays = pixel_grid_rays(W, H)
+    inside = region_contains([d], rays.reshape(-1, 3))[0].reshape(H, W)
+    assert inside[120, 505] and inside[120, 10] and not inside[120, 30] and not inside[90, 505]

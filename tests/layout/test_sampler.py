@@ -1,0 +1,256 @@
+"""Tests of layout.sampler: initialisation, closed-form camera height, the MAP sampler."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from layout.likelihood import observe_labels, render_scene_labels, surface_likelihood
+from layout.placement import ObjectSpec, place_objects
+from layout.polygon import convex_in_polygon
+from layout.context import pair_overlap_areas
+from layout.rooms import generate_room
+from layout.sampler import (
+    DetectedObject,
+    PosteriorError,
+    SamplerConfig,
+    camera_height_estimates,
+    fit_boxes,
+    initialise_objects,
+    map_estimate,
+)
+from panogeom.project import world_box_to_pano
+
+W = 512
+SPECS = [ObjectSpec("bed", (2.05, 1.6, 0.55), "bed-a"), ObjectSpec("tv", (0.25, 1.1, 0.7), "tv-a"),
+         ObjectSpec("chair", (0.5, 0.5, 0.9), "chair-a"), ObjectSpec("plant", (0.4, 0.4, 0.9), "plant-a", True)]
+
+
+def synthetic(seed, *, yaw_noise_deg=3.0, template="rectangle", h0=1.6, width=W):
+    """A placed room, its observed labels (objects as clutter), true boxes and noisy pose estimates."""
+    rng = np.random.default_rng(seed)
+    room = generate_room(rng, template=template)
+    pl = place_objects(room, SPECS, rng).centered_on_camera()
+    cam = pl.camera_height
+    c = pl.centers
+    s = np.array([o.size for o in pl.objects]).reshape(-1, 3)
+    y = pl.yaws
+    labels = render_scene_labels(pl.room.floor, pl.room.ceiling_z, cam, c, s, y, width=width, object_label=0)
+    dets = []
+    for o in pl.objects:
+        box = world_box_to_pano(o.center, o.size, o.yaw, width, width // 2, camera_height=cam).extent
+        yaw = o.yaw + (0.0 if o.symmetric else math.radians(yaw_noise_deg) * rng.normal())
+        dets.append(DetectedObject(o.class_name, box, o.size, yaw, model_id=o.model_id, symmetric=o.symmetric))
+    f = h0 / cam
+    return pl, labels, dets, pl.room.floor * f, pl.room.ceiling_z * f
+
+
+def check_valid(scene, cfg=SamplerConfig()):
+    """The hard constraints of a returned scene."""
+    assert np.isfinite(scene.floor).all() and math.isfinite(scene.camera_height) and math.isfinite(scene.scale)
+    fp = np.array([o.footprint for o in scene.objects]).reshape(-1, 4, 2)
+    assert convex_in_polygon(fp, scene.floor, tol=1e-5).all()
+    c = np.array([o.center[:2] for o in scene.objects]).reshape(-1, 2)
+    yaw = np.array([o.yaw for o in scene.objects])
+    sizes = np.array([o.size[:2] for o in scene.objects]).reshape(-1, 2)
+    if len(c) > 1:
+        pair = pair_overlap_areas(c, yaw, sizes)
+        assert pair.max() <= cfg.overlap_tol + 1e-12
+    for o in scene.objects:
+        assert o.center[2] + o.size[2] / 2 <= scene.ceiling_z + 1e-9
+
+
+def test_initialisation_is_exact_with_true_boxes_and_poses():
+    pl, _, dets, _, _ = synthetic(0, yaw_noise_deg=0.0)
+    init = initialise_objects(dets, W, W // 2)
+    assert np.allclose(init.centers, pl.centers, atol=2e-3)
+    assert np.allclose(init.distance, np.hypot(pl.centers[:, 0], pl.centers[:, 1]), atol=2e-3)
+    assert np.allclose(init.camera_heights, pl.camera_height, atol=5e-3)
+    exact = camera_height_estimates(dets, pl.centers, W, W // 2)
+    assert np.allclose(exact, pl.camera_height, atol=1e-3)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.floats(0.5, 5.0), st.floats(-np.pi, np.pi), st.floats(0, 2 * np.pi), st.floats(0.3, 2.2),
+       st.floats(0.3, 2.2), st.floats(0.3, 2.0), st.floats(1.2, 1.9))
+def test_initialisation_inverts_the_projection(dist, az, yaw, l, w, h, cam):
+    """Near, wide, seam-crossing boxes included: the horizontal box extent and the model size give the
+    centre back, whatever the camera height."""
+    c = np.array([dist * np.cos(az), dist * np.sin(az), h / 2])
+    from layout.sampler import _rect_distance
+
+    near, _ = _rect_distance(c[None, :2], np.array([yaw]), np.array([[l, w]]))
+    if near[0] < 0.05:  # the camera (nearly) inside the footprint: no box
+        return
+    box = world_box_to_pano(c, [l, w, h], yaw, 1024, 512, camera_height=cam).extent
+    det = DetectedObject("table", box, [l, w, h], yaw)
+    got = initialise_objects([det], 1024, 512)
+    assert np.allclose(got.centers[0], c, atol=1e-3 * max(1.0, dist))
+
+
+def test_fit_boxes_fixes_an_edge_on_object():
+    """A wardrobe 5.6 m away seen from its side with a 6 deg yaw error: its box width puts it about a metre
+    off; all four edges (camera height fitted per object, then given) bring it back within centimetres."""
+    c = np.array([-0.626, 5.601, 1.062])
+    size = np.array([0.64, 1.52, 2.125])
+    cam = 1.766
+    box = world_box_to_pano(c, size, 0.0103, 1024, 512, camera_height=cam).extent
+    det = DetectedObject("wardrobe", box, size, 0.0103 - math.radians(6.0))
+    init = initialise_objects([det], 1024, 512)
+    assert np.hypot(*(init.centers[0, :2] - c[:2])) > 0.5
+    assert init.fitted_camera_heights[0] == pytest.approx(cam, abs=0.03)
+    fitted, h = fit_boxes([det], init.centers, 1024, 512, camera_height=cam)
+    assert np.hypot(*(fitted[0, :2] - c[:2])) < 0.15 and h[0] == cam
+
+
+def test_map_estimate_deterministic_and_counts():
+    pl, labels, dets, floor0, ceil0 = synthetic(1)
+    lik = surface_likelihood(observe_labels(labels, [d.bbox_pano for d in dets], width=256), floor0, ceil0, 1.6)
+    cfg = SamplerConfig(epochs=4, samples_per_epoch=10)
+    a = map_estimate(lik, dets, image_width=W, image_height=W // 2, config=cfg, rng=7)
+    b = map_estimate(lik, dets, image_width=W, image_height=W // 2, config=cfg, rng=7)
+    assert a.scene.to_json_dict()["objects"] == b.scene.to_json_dict()["objects"]
+    assert a.scene.scale == b.scene.scale and np.array_equal(a.history, b.history)
+    imp = SamplerConfig.improved(epochs=3, samples_per_epoch=10)
+    runs = [map_estimate(lik, dets, image_width=W, image_height=W // 2, config=imp, rng=r).scene.to_json_dict()
+            for r in (7, 7, 8)]
+    for r in runs:
+        r.pop("timing_s")
+    assert runs[0] == runs[1] and runs[0]["objects"] != runs[2]["objects"]
+    assert a.n_samples == 2 + 4 * 10 and a.history.shape == (5, 6) and a.mode == "paper"
+    assert np.all(np.diff(a.history[:, 4]) <= 1e-12)  # the seed's energy never increases
+    assert a.energies.total <= a.history[0, 4] + 1e-12
+    assert [o.id for o in a.scene.objects] == ["bed-0", "tv-0", "chair-0", "plant-0"]
+    assert a.scene.camera_height == pytest.approx(a.scene.scale * 1.6)
+    assert a.scene.wall_height == pytest.approx(a.scene.scale * ceil0)
+    check_valid(a.scene)
+
+
+def test_paper_budget_and_initial_wall_height():
+    pl, labels, dets, floor0, ceil0 = synthetic(2)
+    lik = surface_likelihood(observe_labels(labels, [d.bbox_pano for d in dets], width=128), floor0, ceil0, 1.6)
+    res = map_estimate(lik, dets, image_width=W, image_height=W // 2, config=SamplerConfig(n_samples=300), rng=0)
+    assert res.n_samples == 2 + 300 and res.history.shape == (13, 6)
+    assert res.initial.wall_height == pytest.approx(2.5)
+    assert 2.0 - 1e-9 <= res.scene.wall_height <= 3.5 + 1e-9
+    check_valid(res.scene)
+
+
+@pytest.mark.parametrize("seed, template", [(3, "rectangle"), (4, "L")])
+def test_improved_recovers_scale_and_positions(seed, template):
+    """The unit-level acceptance on small rooms: wall height within 5 cm, positions within 10 cm."""
+    pl, labels, dets, floor0, ceil0 = synthetic(seed, template=template)
+    obs = observe_labels(labels, [d.bbox_pano for d in dets], width=256, object_pixels="matched")
+    lik = surface_likelihood(obs, floor0, ceil0, 1.6)
+    eo = [None if d.symmetric else (lambda y, m=d.yaw: 1.0 - np.cos(y - m)) for d in dets]
+    res = map_estimate(lik, dets, image_width=W, image_height=W // 2, orientation=eo,
+                       config=SamplerConfig.improved(n_samples=800), rng=seed)
+    assert abs(res.scene.wall_height - pl.room.ceiling_z) < 0.05
+    pos = [np.hypot(*(o.center[:2] - np.array(g.center[:2]))) for o, g in zip(res.scene.objects, pl.objects)]
+    assert np.mean(pos) < 0.10
+    yaw_err = [abs(math.remainder(o.yaw - g.yaw, 2 * math.pi)) for o, g in zip(res.scene.objects, pl.objects)
+               if not g.symmetric]
+    assert np.mean(yaw_err) < math.radians(3.0)
+    check_valid(res.scene)
+
+
+def test_invalid_initial_state_is_repaired():
+    """Starting at a 2.0 m wall height puts the far objects through the walls; the result is valid."""
+    pl, labels, dets, floor0, ceil0 = synthetic(5)
+    lik = surface_likelihood(observe_labels(labels, [d.bbox_pano for d in dets], width=128), floor0, ceil0, 1.6)
+    cfg = SamplerConfig(initial_wall_height=2.0, epochs=2, samples_per_epoch=5)
+    res = map_estimate(lik, dets, image_width=W, image_height=W // 2, config=cfg, rng=0)
+    assert res.n_invalid >= 1
+    check_valid(res.scene)
+
+
+def test_impossible_scene_raises():
+    pl, labels, dets, floor0, ceil0 = synthetic(6)
+    lik = surface_likelihood(observe_labels(labels, width=128), floor0, ceil0, 1.6)
+    huge = DetectedObject("wardrobe", [200.0, 100.0, 300.0, 200.0], [30.0, 30.0, 2.0], 0.0)
+    with pytest.raises(PosteriorError, match="expected a hypothesis with every object inside the room"):
+        map_estimate(lik, [huge], image_width=W, image_height=W // 2,
+                     config=SamplerConfig(epochs=2, samples_per_epoch=5), rng=0)
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(0, 10_000), st.floats(-0.3, 0.3), st.sampled_from(["paper", "improved"]))
+def test_never_invalid_never_nan(seed, box_shift, mode):
+    """Whatever the boxes (even shifted off their objects), the result is valid and finite, or an error."""
+    pl, labels, dets, floor0, ceil0 = synthetic(seed % 50)
+    moved = [DetectedObject(d.cls, d.bbox_pano + np.array([box_shift, 0, box_shift, 0]) * 40, d.size, d.yaw,
+                            symmetric=d.symmetric) for d in dets]
+    lik = surface_likelihood(observe_labels(labels, [d.bbox_pano for d in moved], width=128,
+                                            object_pixels="matched"), floor0, ceil0, 1.6)
+    cfg = (SamplerConfig(epochs=3, samples_per_epoch=8) if mode == "paper"
+           else SamplerConfig.improved(epochs=2, samples_per_epoch=6))
+    try:
+        res = map_estimate(lik, moved, image_width=W, image_height=W // 2, config=cfg, rng=seed)
+    except PosteriorError:
+        return
+    check_valid(res.scene)
+    assert np.isfinite(res.history).all() and np.isfinite(res.energies.as_array()).all()
+
+
+def test_no_objects_keeps_the_initial_scale():
+    _, labels, _, floor0, ceil0 = synthetic(7)
+    lik = surface_likelihood(observe_labels(labels, width=128), floor0, ceil0, 1.6)
+    res = map_estimate(lik, [], image_width=W, image_height=W // 2, config=SamplerConfig(epochs=2), rng=0)
+    assert res.scene.objects == () and res.scene.wall_height == pytest.approx(2.5)
+    res = map_estimate(lik, [], image_width=W, image_height=W // 2, config=SamplerConfig.improved(epochs=2), rng=0)
+    assert res.scene.scale == pytest.approx(1.0)  # no object, no scale cue: the assumed camera height stays
+
+
+def test_fixed_scale():
+    """A one-point wall-height range fixes the scale (a known camera height), in both schemes."""
+    pl, labels, dets, floor0, ceil0 = synthetic(10)
+    lik = surface_likelihood(observe_labels(labels, [d.bbox_pano for d in dets], width=128,
+                                            object_pixels="matched"), floor0, ceil0, 1.6)
+    wh = pl.room.ceiling_z
+    for cfg in (SamplerConfig(epochs=3, samples_per_epoch=5), SamplerConfig.improved(epochs=3, samples_per_epoch=5)):
+        fixed = replace(cfg, wall_height_range=(wh, wh), initial_wall_height=wh)
+        res = map_estimate(lik, dets, image_width=W, image_height=W // 2, config=fixed, rng=0)
+        assert res.scene.wall_height == pytest.approx(wh) and res.history[:, 5] == pytest.approx(wh)
+        check_valid(res.scene)
+
+
+def test_orientation_energy_forms_are_accepted():
+    pl, labels, dets, floor0, ceil0 = synthetic(8)
+    lik = surface_likelihood(observe_labels(labels, width=128), floor0, ceil0, 1.6)
+    cfg = SamplerConfig(epochs=2, samples_per_epoch=5)
+    by_class = map_estimate(lik, dets, image_width=W, image_height=W // 2, config=cfg, rng=0,
+                            orientation=lambda cls, y: 1.0 - np.cos(y))
+    tables = map_estimate(lik, dets, image_width=W, image_height=W // 2, config=cfg, rng=0,
+                          orientation=[np.cos(np.linspace(0, 2 * np.pi, 36, endpoint=False))] * len(dets))
+    assert by_class.energies.orientation > 0 and math.isfinite(tables.energies.orientation)
+
+
+def test_config_and_input_errors():
+    with pytest.raises(ValueError, match="mode: expected 'paper' or 'improved'"):
+        SamplerConfig(mode="fast")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="epochs: expected an integer >= 1"):
+        SamplerConfig(epochs=0)
+    with pytest.raises(ValueError, match="wall_height_range: expected 0 < low <= high"):
+        SamplerConfig(wall_height_range=(3.0, 2.0))
+    with pytest.raises(ValueError, match="initial_wall_height: expected a value in"):
+        SamplerConfig(initial_wall_height=4.0)
+    with pytest.raises(ValueError, match="alignment: expected modes in"):
+        SamplerConfig(alignment={"bed": "sideways"})
+    with pytest.raises(ValueError, match="bbox_pano: expected finite"):
+        DetectedObject("bed", [0, 10, 5, 5], [1, 1, 1], 0.0)
+    with pytest.raises(ValueError, match=r"size: expected \(l, w, h\)"):
+        DetectedObject("bed", [0, 0, 5, 5], [1, 0, 1], 0.0)
+    _, labels, dets, floor0, ceil0 = synthetic(9)
+    lik = surface_likelihood(observe_labels(labels, width=128), floor0, ceil0, 1.6)
+    twins = [dets[0], DetectedObject(dets[1].cls, dets[1].bbox_pano, dets[1].size, dets[1].yaw, id="bed-0")]
+    with pytest.raises(ValueError, match="objects: expected unique ids, got 'bed-0' twice"):
+        map_estimate(lik, twins, image_width=W, image_height=W // 2)
+    with pytest.raises(ValueError, match="objects: expected DetectedObject items, got dict"):
+        map_estimate(lik, [{"cls": "bed"}], image_width=W, image_height=W // 2)  # type: ignore[list-item]
+    with pytest.raises(ValueError, match="likelihood: expected a SurfaceLikelihood"):
+        map_estimate(None, dets, image_width=W, image_height=W // 2)  # type: ignore[arg-type]
