@@ -304,7 +304,6 @@ def process_item(item: BatchItem, out: str | os.PathLike[str], options, size: in
     """
     from .cmd_run import write_outputs
     from .imageio import read_panorama
-    from .report import write_report
     from .pipeline import run_pipeline
     from .progress import Progress
 
@@ -324,7 +323,6 @@ def process_item(item: BatchItem, out: str | os.PathLike[str], options, size: in
         result = run_pipeline(pano.image, opts, Progress(quiet=True))
         tmp = Path(tempfile.mkdtemp(prefix=f".{item.name}{_PARTIAL}", dir=out_p))
         write_outputs(result, tmp, item.path.name)
-        write_report(tmp)
         _commit(tmp, dest)
         tmp = None
     except UserError as exc:

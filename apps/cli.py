@@ -56,6 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--limit", type=int, default=0, help="only the first N rooms (0: all)")
     e.add_argument("--jobs", type=int, default=0, help="worker processes (0: one per core)")
     e.add_argument("--force", action="store_true", help="re-run rooms whose scene.json exists")
+    e.epilog = "--detector gt-boxes uses each room's own gt.json boxes (pose and sampling without detection errors)"
     add_run_options(e)
 
     s = sub.add_parser("synth", help="generate synthetic rooms with ground truth (panorama, labels, depth, gt.json)",

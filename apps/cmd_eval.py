@@ -22,6 +22,10 @@ from .outdir import prepare_out_dir
 from .progress import Progress
 
 
+#: ``--detector gt-boxes``: each room's own ground-truth boxes (separates detection from pose and sampling).
+GT_BOXES = "gt-boxes"
+
+
 def _rooms(data: Path) -> list[Path]:
     if not data.is_dir():
         raise UserError(f"{data}: --data must be a folder of rooms with gt.json")
@@ -47,6 +51,8 @@ def _run_room(room: str, out: str, opts: dict, force: bool) -> tuple[str, str | 
     o = dict(opts)
     if gt.get("scale_known") is False and o.get("camera_height") is None:
         o["camera_height"] = float(gt["camera_height_m"])
+    if o.get("detector") == GT_BOXES:
+        o["detector"] = f"annotations:{room_p / 'gt.json'}"
     try:
         img_name = gt.get("image", {}).get("file", "pano.png")
         pano = read_panorama(room_p / img_name, max_width=o.pop("size"))
@@ -56,16 +62,40 @@ def _run_room(room: str, out: str, opts: dict, force: bool) -> tuple[str, str | 
         post = res.extra.get("posterior")
         if post is not None:
             write_json(out_p / "scene_init.json", post.initial.to_json_dict())
-        write_json(out_p / "detections.json", [d.to_json() for d in res.detections])
+        rect = res.extra.get("rectification")
+        H, W = res.image.shape[:2]
+        dets = []
+        for d in res.detections:  # in the input panorama's pixels, like gt.json
+            j = d.to_json()
+            if rect is not None:
+                j["bbox_pano"] = [float(b) for b in rect.box_to_input(d.box, W, H)]
+            dets.append(j)
+        write_json(out_p / "detections.json", {"width": W, "height": H, "detections": dets})
         return room_p.name, None
     except Exception as exc:  # a failed room is recorded and scored zero, the evaluation goes on
         return room_p.name, f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=3)}"
 
 
+def _detection_ap(rooms: list) -> dict[str, float]:
+    """Panorama-level AP@0.5 per class of the saved detections against gt.json (detect's evaluation)."""
+    from detect.builtin.evaluate import evaluate, load_ground_truth
+    from detect.detection import Detection
+
+    truths, detections = [], {}
+    for room, dets in rooms:
+        W, H = int(dets["width"]), int(dets["height"])
+        gt = load_ground_truth(room, width=W)
+        truths.append(gt)
+        detections[gt.name] = [Detection(d["class"], float(d["score"]), tuple(d["bbox_pano"]), W, H)
+                               for d in dets["detections"]]
+    res = evaluate(detections, truths, iou_threshold=0.5)
+    return {c: float(r.ap) for c, r in res.classes.items()}
+
+
 def run(args) -> int:
     from .atomic import write_json, write_text
     from .cmd_run import check_options, options_from_args
-    from .evaluation import load_json, markdown_table2, score_room, summarize
+    from .evaluation import jsonable, load_json, markdown_table2, score_room, summarize
 
     data = Path(args.data)
     rooms = _rooms(data)[: args.limit or None]
@@ -76,6 +106,8 @@ def run(args) -> int:
         out = prepare_out_dir(args.out) if args.out else None
     else:
         check_options(args)
+        if args.detector != GT_BOXES and args.detector.startswith("annotations:"):
+            raise UserError("--detector annotations:FILE names one file; for each room's gt.json use --detector gt-boxes")
         out = pred = prepare_out_dir(args.out or "out/eval")
         o = options_from_args(args)
         opts = {"camera_height": o.camera_height, "detector": o.detector, "samples": o.samples, "seed": o.seed,
@@ -90,20 +122,16 @@ def run(args) -> int:
                     futs = [ex.submit(_run_room, str(r), str(out), opts, args.force) for r in rooms]
                     results = [f.result() for f in prog.bar(as_completed(futs), total=len(futs), desc="rooms")]
         errors = {name: err for name, err in results if err}
-    scores, det_pairs = [], []
+    scores, truths, detections = [], [], {}
     for r in rooms:
         gt = load_json(r / "gt.json")
         scene = load_json(pred / r.name / "scene.json")
         init = load_json(pred / r.name / "scene_init.json")
         scores.append(score_room(r.name, scene, gt, init, errors.get(r.name)))
         dets = load_json(pred / r.name / "detections.json")
-        if gt.get("objects") and dets is not None:
-            det_pairs.append((dets, gt))
-    ap = None
-    if det_pairs:
-        from detect.evaluation import average_precision_by_class
-
-        ap = average_precision_by_class(det_pairs, iou=0.5)
+        if gt.get("objects") and isinstance(dets, dict) and args.detector != GT_BOXES:
+            truths.append((r, dets))
+    ap = _detection_ap(truths) if truths else None
     summary = summarize(scores, ap)
     table = markdown_table2(summary)
     print(table)
@@ -111,7 +139,7 @@ def run(args) -> int:
         if not s.ok:
             prog.say(f"failed: {s.name}: {s.error.splitlines()[0] if s.error else 'no scene.json'}")
     if out is not None:
-        write_json(out / "eval.json", {"summary": summary, "rooms": [s.__dict__ for s in scores]})
+        write_json(out / "eval.json", jsonable({"summary": summary, "rooms": [s.__dict__ for s in scores]}))
         write_text(out / "table2.md", table)
         prog.say(f"eval: wrote {out / 'eval.json'} and {out / 'table2.md'}")
     return 0

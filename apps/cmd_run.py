@@ -28,15 +28,17 @@ def options_from_args(args):
 
 
 def write_outputs(result, out: Path, image_name: str) -> dict[str, Path]:
-    """scene.json last (its presence marks a complete run), everything atomically."""
+    """Every output of a run, each atomically; scene.json after the exports, then report.html (built from them)."""
     from .atomic import write_json
     from .export import export_all
+    from .report import write_report
 
     files = export_all(result.scene, out, image=result.image, labels=result.labels_input)
     doc = result.scene.to_json_dict()
     doc["image"] = {"file": image_name, "width": int(result.image.shape[1]), "height": int(result.image.shape[0])}
     doc["warnings"] = list(result.warnings)
     files["scene.json"] = write_json(out / "scene.json", doc)
+    files["report.html"] = write_report(out)
     return files
 
 
@@ -58,7 +60,6 @@ def summary_line(scene, seconds: float) -> str:
 def run(args) -> int:
     from .imageio import read_panorama
     from .pipeline import run_pipeline
-    from .report import write_report
 
     check_options(args)
     prog = Progress(args.quiet)
@@ -68,7 +69,6 @@ def run(args) -> int:
     result = run_pipeline(pano.image, options_from_args(args), prog)
     with prog.stage("export", "writing scene.json, scene.glb/.obj, floor plan, overlay, labels"):
         files = write_outputs(result, out, Path(args.image).name)
-        files["report.html"] = write_report(out)
     for w in result.warnings:
         prog.say(f"warning: {w}")
     prog.say(summary_line(result.scene, prog.total()))

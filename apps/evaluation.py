@@ -61,7 +61,7 @@ def score_room(name: str, scene: Mapping | None, gt: Mapping, initial: Mapping |
     if scene is None:
         return RoomScore(name, False, error or "no scene", {"iou_2d": 0.0, "iou_3d": 0.0})
     s = score_layout(scene["room"]["floor"], float(scene["room"]["ceiling_z"]), g_floor, g_ceil,
-                     pred_floor_z=float(scene["room"].get("floor_z") or 0.0))
+                     camera_height=float(gt["camera_height_m"]), width=int(gt["image"]["width"]))
     cam = scene.get("camera", {}).get("height_m")
     layout = {"iou_2d": s.iou_2d, "iou_3d": s.iou_3d, "corners_ok": bool(s.corners_ok),
               "n_pred": len(scene["room"]["floor"]), "n_gt": len(g_floor),
@@ -135,6 +135,17 @@ def markdown_table2(summary: Mapping) -> str:
     if summary.get("detection_ap50"):
         text += "\n\nDetection AP@0.5: " + ", ".join(f"{c} {v:.3f}" for c, v in sorted(summary["detection_ap50"].items()))
     return text + "\n"
+
+
+def jsonable(obj):
+    """``obj`` with non-finite floats (means of empty sets) as None: unknown values are null in JSON."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [jsonable(v) for v in obj]
+    return obj
 
 
 def load_json(path: Path) -> dict | None:

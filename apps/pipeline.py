@@ -6,7 +6,8 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
 2. line segments -> Manhattan vanishing points -> upright rotation R
    (:func:`panogeom.rectify.estimate_rectification`)
 3. object detection on perspective tiles, boxes in the panorama, spherical
-   NMS, grab-cut masks (:mod:`detect`)
+   NMS (:mod:`detect`); grab-cut masks (``detect.grabcut``) are not used: on
+   synthetic rooms they made the pose CRF worse than plain box crops
 4. surface labels: orientation map + geometric context, objects masked
    (:mod:`layout.surfaces`)
 5. room geometry from the labels: Manhattan floor polygon and wall height,
@@ -108,7 +109,6 @@ def _rectify(image: np.ndarray, prog: Progress, notes: list[str]):
 def _detect(image: np.ndarray, upright: np.ndarray, rect, spec: str, prog: Progress) -> list:
     """Detections in the upright panorama (boxes read from a file refer to the input: mapped)."""
     from detect.backends import ModelFileError, get_detector
-    from detect.grabcut import segment_detections
     from detect.tiles import detect_panorama
 
     try:
@@ -122,8 +122,6 @@ def _detect(image: np.ndarray, upright: np.ndarray, rect, spec: str, prog: Progr
             dets = [replace(d, box=tuple(float(b) for b in rect.box_to_rectified(d.box, W, H))) for d in dets]
     else:
         dets = detect_panorama(upright, detector)
-    if dets:
-        dets = segment_detections(upright, dets)
     prog.say(f"  {len(dets)} objects: " + ", ".join(sorted({d.label for d in dets})))
     return dets
 
@@ -156,14 +154,14 @@ def _poses(upright: np.ndarray, dets: list, prog: Progress) -> list:
         if lib.by_class(d.label):
             by_class.setdefault(d.label, []).append(i)
     for cls, idx in sorted(by_class.items()):
-        crops, masks, views = [], [], []
+        # Box crops, no grab-cut masks: measured on synthetic rooms, grab-cut masks flipped TVs and beds
+        # (front/back) where the plain box crop was within a few degrees (docs/EVALUATION.md, pipeline notes).
+        crops, views = [], []
         for i in idx:
             crop, view = extract_crop(upright, dets[i].box)
             crops.append(crop)
             views.append(view)
-            masks.append(_crop_mask(dets[i], view, W, H) if dets[i].mask is not None else None)
-        use_masks = masks if all(m is not None for m in masks) else None
-        res = estimate_poses(renders, cls, crops, use_masks)
+        res = estimate_poses(renders, cls, crops)
         for i, view, est in zip(idx, views, res.estimates):
             model = lib[est.model_id]
             ray = view.direction
@@ -177,13 +175,6 @@ def _poses(upright: np.ndarray, dets: list, prog: Progress) -> list:
             out[i] = (model, yaw, table)
     prog.say(f"  poses for {sum(o is not None for o in out)} of {len(dets)} objects")
     return out
-
-
-def _crop_mask(det, view, width: int, height: int) -> np.ndarray:
-    """The detection's panorama mask seen in the crop's view (nearest sampling)."""
-    from panogeom.perspective import equirect_to_perspective
-
-    return equirect_to_perspective(det.mask.astype(np.uint8), view, interpolation="nearest") > 0
 
 
 def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | None = None) -> PipelineResult:
@@ -205,6 +196,7 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
     from layout.sampler import DetectedObject, PosteriorError, SamplerConfig, map_estimate
     from layout.scene import Scene
     from layout.surfaces import estimate_surfaces
+    from panogeom.rotation import rot_z
     from panogeom.transform import rotate_pano
 
     prog = progress or Progress(quiet=True)
@@ -292,17 +284,23 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
                 raise RuntimeError(f"the sampler found no valid scene: {exc}") from None
     scene = post.scene
 
-    # Report in the world frame of the conventions, boxes in the input panorama.
+    # Report in the world frame of the conventions: gravity-aligned with x along the horizontal projection of
+    # the INPUT's centre column. We computed in the wall-aligned frame (walls on x/y), which is turned by the
+    # rectification's heading h about z from it: p_world = Rz(h) p_walls; boxes go back to input pixels.
+    heading = rect.heading if rect is not None else 0.0
+    turn = rot_z(heading)
     objs = []
     for o in scene.objects:
         box = o.bbox_pano
         if box is not None and rect is not None:
             box = rect.box_to_input(box, W, H)
-        objs.append(replace(o, bbox_pano=box))
-    labels_input = surf.labels if rect is None else rotate_pano(surf.labels, R.T, interpolation="nearest")
+        objs.append(replace(o, center=turn @ o.center, yaw=o.yaw + heading, bbox_pano=box))
+    floor = scene.floor @ turn[:2, :2].T
+    R = turn @ R
+    labels_input = surf.labels if rect is None else rotate_pano(surf.labels, rect.rotation.T, interpolation="nearest")
     timing = dict(prog.timings)
     timing["total"] = prog.total()
-    scene = Scene(floor=scene.floor, ceiling_z=scene.ceiling_z, camera_height=scene.camera_height,
+    scene = Scene(floor=floor, ceiling_z=scene.ceiling_z, camera_height=scene.camera_height,
                   objects=tuple(objs), floor_z=0.0, rotation=R, scale=scene.scale if objects else None,
                   image_width=W, image_height=H, timing=timing)
     return PipelineResult(scene=scene, image=image, labels_input=labels_input, detections=dets,

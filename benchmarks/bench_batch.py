@@ -19,6 +19,10 @@ With ``--write-docs`` the section "## Batch" of docs/BENCHMARKS.md is replaced
 
 from __future__ import annotations
 
+import sys as _sys
+_sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
+from _docs import replace_section  # noqa: E402
+
 import argparse
 import os
 import platform
@@ -122,17 +126,8 @@ def report(r: dict) -> list[str]:
 
 
 def write_docs(lines: list[str]) -> None:
-    text = DOCS.read_text(encoding="utf-8")  # re-read now: others edit this file too
-    block = "\n".join(lines)
-    if SECTION + "\n" in text:
-        start = text.index(SECTION + "\n")
-        nxt = text.find("\n## ", start + len(SECTION))
-        text = text[:start] + block + ("\n" + text[nxt + 1:] if nxt >= 0 else "")
-    else:
-        text = text.rstrip("\n") + "\n\n" + block
-    from apps.atomic import write_text
-
-    write_text(DOCS, text if text.endswith("\n") else text + "\n")
+    """Replace this script's section of docs/BENCHMARKS.md (benchmarks/_docs.py)."""
+    replace_section(DOCS, "\n".join(lines), SECTION)
 
 
 def main(argv: list[str] | None = None) -> int:

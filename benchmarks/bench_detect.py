@@ -13,6 +13,10 @@ real network.
 
 from __future__ import annotations
 
+import sys as _sys
+_sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
+from _docs import replace_section  # noqa: E402
+
 import argparse
 import os
 import platform
@@ -72,17 +76,8 @@ def once(f) -> tuple[float, float]:
 
 
 def update_docs(text: str, path: Path) -> None:
-    """Replace (or append) this script's section of docs/BENCHMARKS.md, re-reading the file just before."""
-    old = path.read_text(encoding="utf-8") if path.is_file() else "# Benchmarks\n"
-    start = old.find(SECTION)
-    if start < 0:
-        new = old.rstrip("\n") + "\n\n" + text
-    else:
-        nxt = old.find("\n## ", start + len(SECTION))
-        new = old[:start] + text + (old[nxt + 1:] if nxt >= 0 else "")
-    tmp = path.with_suffix(".md.tmp")
-    tmp.write_text(new if new.endswith("\n") else new + "\n", encoding="utf-8")
-    tmp.replace(path)
+    """Replace this script's section of docs/BENCHMARKS.md (benchmarks/_docs.py)."""
+    replace_section(path, text, SECTION)
 
 
 def main(argv: list[str] | None = None) -> int:

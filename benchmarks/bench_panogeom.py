@@ -24,6 +24,10 @@ section is replaced; the file is re-read just before writing).
 
 from __future__ import annotations
 
+import sys as _sys
+_sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
+from _docs import replace_section  # noqa: E402
+
 import argparse
 import os
 import platform
@@ -147,23 +151,8 @@ def render(timings, accuracy, env) -> str:
 
 
 def update_docs(section: str) -> None:
-    """Replace (or append) our section of docs/BENCHMARKS.md, leaving the others untouched."""
-    DOCS.parent.mkdir(parents=True, exist_ok=True)
-    text = DOCS.read_text() if DOCS.exists() else "# Benchmarks\n"
-    lines = text.splitlines()
-    try:
-        start = lines.index(SECTION)
-    except ValueError:
-        new = text.rstrip("\n") + "\n\n" + section
-    else:
-        end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("## ")), len(lines))
-        tail = "\n".join(lines[end:])
-        new = "\n".join(lines[:start]) + "\n" + section + ("\n" + tail if tail else "")
-    new = new.rstrip("\n") + "\n"
-    fd, tmp = tempfile.mkstemp(dir=DOCS.parent, prefix=".BENCHMARKS.", suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        f.write(new)
-    os.replace(tmp, DOCS)
+    """Replace our section of docs/BENCHMARKS.md (benchmarks/_docs.py)."""
+    replace_section(DOCS, section, SECTION)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -18,6 +18,10 @@ docs/BENCHMARKS.md is replaced (only that section).
 
 from __future__ import annotations
 
+import sys as _sys
+_sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
+from _docs import replace_section  # noqa: E402
+
 import argparse
 import json
 import math
@@ -144,22 +148,8 @@ def section(r: dict) -> str:
 
 
 def update_docs(text: str) -> None:
-    """Replace (or append) our section of docs/BENCHMARKS.md, leaving the others untouched; atomic write."""
-    old = DOCS.read_text() if DOCS.exists() else "# Benchmarks\n"
-    lines = old.splitlines()
-    try:
-        start = lines.index(SECTION)
-    except ValueError:
-        new = old.rstrip("\n") + "\n\n" + text
-    else:
-        end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("## ")), len(lines))
-        tail = "\n".join(lines[end:])
-        new = "\n".join(lines[:start]) + "\n" + text + ("\n" + tail if tail else "")
-    new = new.rstrip("\n") + "\n"
-    fd, tmp = tempfile.mkstemp(dir=DOCS.parent, prefix=".BENCHMARKS.", suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        f.write(new)
-    os.replace(tmp, DOCS)
+    """Replace our section of docs/BENCHMARKS.md (benchmarks/_docs.py)."""
+    replace_section(DOCS, text, SECTION)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -30,6 +30,10 @@ writing, others edit them too).
 
 from __future__ import annotations
 
+import sys as _sys
+_sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
+from _docs import replace_section  # noqa: E402
+
 import argparse
 import importlib.util
 import json
@@ -380,23 +384,8 @@ def eval_section(n_rooms, pc_rooms):
 
 
 def update_docs(path: Path, title: str, section_name: str, section: str) -> None:
-    """Replace (or append) our section of a docs file, leaving the others untouched."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    text = path.read_text() if path.exists() else f"# {title}\n"
-    lines = text.splitlines()
-    try:
-        start = lines.index(section_name)
-    except ValueError:
-        new = text.rstrip("\n") + "\n\n" + section
-    else:
-        end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("## ")), len(lines))
-        tail = "\n".join(lines[end:])
-        new = "\n".join(lines[:start]) + "\n" + section + ("\n" + tail if tail else "")
-    new = new.rstrip("\n") + "\n"
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        f.write(new)
-    os.replace(tmp, path)
+    """Replace our section of a docs file (benchmarks/_docs.py); ``title`` names a new file's kind."""
+    replace_section(path, section, section_name)
 
 
 def main(argv: list[str] | None = None) -> int:

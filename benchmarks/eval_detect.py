@@ -21,6 +21,10 @@ With ``--update-docs`` the Markdown section is written into docs/EVALUATION.md
 
 from __future__ import annotations
 
+import sys as _sys
+_sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
+from _docs import replace_section  # noqa: E402
+
 import argparse
 import os
 import platform
@@ -39,17 +43,8 @@ ACCEPT = {"bed": 0.90, "tv": 0.90, "plant": 0.90, "chair": 0.80}
 
 
 def update_docs(text: str, path: Path, section: str = SECTION) -> None:
-    """Replace (or append) ``section`` of a Markdown file, re-reading it just before writing."""
-    old = path.read_text(encoding="utf-8") if path.is_file() else "# Evaluation\n"
-    start = old.find(section)
-    if start < 0:
-        new = old.rstrip("\n") + "\n\n" + text
-    else:
-        nxt = old.find("\n## ", start + len(section))
-        new = old[:start] + text + ("\n" + old[nxt + 1:] if nxt >= 0 else "")
-    tmp = path.with_suffix(".md.tmp")
-    tmp.write_text(new if new.endswith("\n") else new + "\n", encoding="utf-8")
-    tmp.replace(path)
+    """Replace this script's section (benchmarks/_docs.py)."""
+    replace_section(path, text, section)
 
 
 def _seed(root: Path) -> str:

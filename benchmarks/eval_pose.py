@@ -32,6 +32,10 @@ crop-relative yaw (equal to the world-yaw error after
 
 from __future__ import annotations
 
+import sys as _sys
+_sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
+from _docs import replace_section  # noqa: E402
+
 import argparse
 import json
 import math
@@ -355,24 +359,8 @@ def section(result: dict, renders_info: str) -> str:
 
 
 def update_docs(text: str, path: Path = DOCS, heading: str = SECTION) -> None:
-    """Replace (or append) our section of a markdown file, leaving the others untouched; atomic write."""
-    import tempfile
-
-    old = path.read_text() if path.exists() else "# Evaluation\n"
-    lines = old.splitlines()
-    try:
-        start = lines.index(heading)
-    except ValueError:
-        new = old.rstrip("\n") + "\n\n" + text
-    else:
-        end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("## ")), len(lines))
-        tail = "\n".join(lines[end:])
-        new = "\n".join(lines[:start]) + "\n" + text + ("\n" + tail if tail else "")
-    new = new.rstrip("\n") + "\n"
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix="." + path.name + ".", suffix=".tmp")
-    with os.fdopen(fd, "w") as f:
-        f.write(new)
-    os.replace(tmp, path)
+    """Replace this script's section (benchmarks/_docs.py)."""
+    replace_section(path, text, heading)
 
 
 def main(argv: list[str] | None = None) -> int:

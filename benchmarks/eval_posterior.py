@@ -43,6 +43,10 @@ split.
 
 from __future__ import annotations
 
+import sys as _sys
+_sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
+from _docs import replace_section  # noqa: E402
+
 import argparse
 import json
 import math
@@ -282,16 +286,8 @@ def markdown(out: dict, summary: dict) -> str:
 
 
 def write_section(text: str, path: Path = DOC) -> None:
-    """Replace (or append) this script's section of docs/EVALUATION.md, re-reading the file first."""
-    doc = path.read_text() if path.exists() else "# Evaluation\n"
-    pat = re.compile(r"^## Posterior sampling \(layout\)\n.*?(?=^## |\Z)", re.S | re.M)
-    if pat.search(doc):
-        doc = pat.sub(lambda _: text + "\n", doc)
-    else:
-        doc = doc.rstrip("\n") + "\n\n" + text
-    tmp = path.with_suffix(".md.tmp")
-    tmp.write_text(doc)
-    os.replace(tmp, path)
+    """Replace this script's section of docs/EVALUATION.md (benchmarks/_docs.py)."""
+    replace_section(path, text, "## Posterior sampling (layout)")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -60,6 +60,7 @@ _ENTRIES: dict[str, str | Factory] = {
     "onnx": "detect.backends.onnx_backend:from_spec",
     "tflite": "detect.backends.tflite_backend:from_spec",
     "annotations": "detect.backends.annotations_backend:from_spec",
+    "builtin": "detect.builtin.backend:from_spec",
 }
 _NEEDS_PATH = {"onnx", "annotations"}
 _SUFFIXES = {".onnx": "onnx", ".tflite": "tflite", ".json": "annotations"}
@@ -97,7 +98,7 @@ def available_backends() -> tuple[str, ...]:
     Examples
     --------
     >>> available_backends()
-    ('annotations', 'onnx', 'tflite')
+    ('annotations', 'builtin', 'onnx', 'tflite')
     """
     return tuple(sorted(_ENTRIES))
 
@@ -187,7 +188,7 @@ def get_detector(spec: str, **options: object) -> AnyDetector:
     >>> get_detector("no-such-backend")
     Traceback (most recent call last):
     ...
-    ValueError: detector spec 'no-such-backend': expected one of annotations, onnx, tflite (as NAME or NAME:FILE) or a file ending in .json, .onnx, .tflite
+    ValueError: detector spec 'no-such-backend': expected one of annotations, builtin, onnx, tflite (as NAME or NAME:FILE) or a file ending in .json, .onnx, .tflite
     """
     parsed = parse_spec(spec)
     merged: dict[str, object] = {**parsed.options, **options}

@@ -29,6 +29,8 @@ centres at integer + 0.5.
 
 from __future__ import annotations
 
+import pickle
+
 import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -132,6 +134,12 @@ class BuiltinDetector:
         default: ``input_size`` of the weights' record, tuned on the
         validation rooms, else the training size). The network is fully
         convolutional: a larger input enlarges what it sees.
+    border_snap : float
+        A box edge closer to the tile border than this fraction of the tile
+        side is moved onto the border. Objects cut by the tile border were
+        trained with boxes ending there; snapping makes the panorama driver
+        see such boxes as truncated (``TileBox.truncated``), so that NMS on
+        the sphere prefers a tile that sees the object whole.
 
     Attributes
     ----------
@@ -151,7 +159,7 @@ class BuiltinDetector:
 
     def __init__(self, weights: str | Path | None = None, *, score_threshold: float | None = None,
                  max_detections: int = 50, num_threads: int | None = None, iou_threshold: float = 0.5,
-                 input_size: int | None = None) -> None:
+                 input_size: int | None = None, border_snap: float = 0.03) -> None:
         torch = torch_module()
         self.weights = Path(weights) if weights is not None else DEFAULT_WEIGHTS
         if not self.weights.is_file():
@@ -161,7 +169,7 @@ class BuiltinDetector:
             config = NetConfig.from_json(blob["config"])
             net = build_network(config)
             net.load_state_dict(blob["state_dict"])
-        except (OSError, RuntimeError, KeyError, TypeError, ValueError) as exc:
+        except (OSError, RuntimeError, KeyError, TypeError, ValueError, pickle.UnpicklingError) as exc:
             raise ModelFileError(self.weights, f"not builtin detector weights ({type(exc).__name__}: {exc})") from None
         self.record = load_record(self.weights)
         if score_threshold is None:
@@ -173,6 +181,9 @@ class BuiltinDetector:
         self.score_threshold = float(score_threshold)
         self.max_detections = int(max_detections)
         self.iou_threshold = float(iou_threshold)
+        if not 0.0 <= float(border_snap) < 0.5:
+            raise ValueError(f"border_snap: expected a fraction in [0, 0.5), got {border_snap!r}")
+        self.border_snap = float(border_snap)
         self.config = config
         self.classes: tuple[str, ...] = tuple(config.classes)
         size = int(self.record.get("input_size", config.input_size)) if input_size is None else int(input_size)
@@ -220,11 +231,13 @@ class BuiltinDetector:
         for (sx, sy), found, img in zip(scales, raw, imgs):
             h, w = img.shape[:2]
             dets = []
+            mu, mv = self.border_snap * w, self.border_snap * h
             for c, s, b in found:
-                d = ImageDetection(self.classes[c], min(max(s, 0.0), 1.0),
-                                   [b[0] * sx, b[1] * sy, b[2] * sx, b[3] * sy]).clipped(w, h)
-                if d is not None:
-                    dets.append(d)
+                u0, v0, u1, v1 = b[0] * sx, b[1] * sy, b[2] * sx, b[3] * sy
+                u0, v0 = (0.0 if u0 < mu else u0), (0.0 if v0 < mv else v0)
+                u1, v1 = (float(w) if u1 > w - mu else u1), (float(h) if v1 > h - mv else v1)
+                if u0 < u1 and v0 < v1:
+                    dets.append(ImageDetection(self.classes[c], min(max(s, 0.0), 1.0), [u0, v0, u1, v1]))
             if len(dets) > 1:
                 keep = box_nms(np.stack([d.box for d in dets]), [d.score for d in dets], self.iou_threshold,
                                labels=[d.label for d in dets])

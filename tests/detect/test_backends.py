@@ -25,7 +25,7 @@ def test_parse_spec_forms():
 
 
 @pytest.mark.parametrize("spec,msg", [
-    ("builtin", "expected one of annotations, onnx, tflite"),
+    ("frobnicate", "expected one of annotations, builtin, onnx, tflite"),
     ("onnx", "the onnx backend needs a file"),
     ("annotations:", "the annotations backend needs a file"),
     ("", "expected a string like 'tflite'"),

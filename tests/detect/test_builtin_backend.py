@@ -92,6 +92,20 @@ def test_save_and_load_round_trip(tmp_path):
     assert len(d.detect(np.zeros((64, 64, 3), np.uint8))) == 5
 
 
+def test_edges_near_the_tile_border_are_snapped_onto_it(tmp_path):
+    torch.manual_seed(1)
+    cfg = NetConfig(("tv", "bed"), (4, 4, 8, 8, 8), 8, 64)
+    path = save_weights(build_network(cfg).eval(), cfg, tmp_path / "w.pt")
+    img = np.random.default_rng(0).integers(0, 255, (100, 120, 3)).astype(np.uint8)
+    for snap in (0.0, 0.1):
+        dets = BuiltinDetector(path, score_threshold=0.0, max_detections=40, border_snap=snap).detect(img)
+        edges = np.array([[d.box[0], d.box[1], 120 - d.box[2], 100 - d.box[3]] for d in dets])
+        near = (edges > 0) & (edges < snap * np.array([120, 100, 120, 100]))
+        assert len(dets) and not near.any() and edges.min() >= 0
+    with pytest.raises(ValueError, match=r"border_snap: expected a fraction in \[0, 0.5\), got 0.7"):
+        BuiltinDetector(path, border_snap=0.7)
+
+
 def test_views():
     v = builtin_views(160)
     assert len(v) == 24 and all((x.width, x.height) == (160, 160) for x in v)
