@@ -74,7 +74,7 @@ from typing import Callable, Literal, Sequence, Union
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from panogeom.coords import lonlat_to_pixel
+from panogeom.coords import lonlat_to_pixel, xy_to_lon
 
 from .labelmap import (
     CEILING,
@@ -483,8 +483,8 @@ def box_silhouettes(centers: ArrayLike, sizes: ArrayLike, yaws: ArrayLike, camer
     ly_c = np.array([-1.0, 1.0, 1.0, -1.0])[None, :] * hw[:, None]
     px = c[:, 0, None] + cos[:, None] * lx_c - sin[:, None] * ly_c
     py = c[:, 1, None] + sin[:, None] * lx_c + cos[:, None] * ly_c
-    lon_c = np.arctan2(-c[:, 1], c[:, 0])
-    rel = np.angle(np.exp(1j * (np.arctan2(-py, px) - lon_c[:, None])))
+    lon_c = xy_to_lon(c[:, :2])
+    rel = np.angle(np.exp(1j * (xy_to_lon(np.stack([px, py], axis=-1)) - lon_c[:, None])))
     direction, u0, ku, v0, kv = _column_geometry(w)
     first = np.floor(u0 + ku * (lon_c + rel.min(axis=1)) - 0.5).astype(np.intp) - 1
     last = np.ceil(u0 + ku * (lon_c + rel.max(axis=1)) - 0.5).astype(np.intp) + 1

@@ -90,7 +90,7 @@ from typing import Collection, Literal, Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from panogeom.coords import DEFAULT_CAMERA_HEIGHT, pixel_to_lonlat
+from panogeom.coords import DEFAULT_CAMERA_HEIGHT, pixel_to_lonlat, xy_to_lon
 
 from .context import ALIGNMENT_MODES, MU, NU_N, context_energy, pair_overlap_areas
 from .likelihood import OrientationLikelihood, OrientationSpec, SurfaceLikelihood, orientation_likelihood
@@ -201,8 +201,8 @@ def _box_lon(objects: Sequence[DetectedObject], width: int, height: int) -> tupl
 def _angular_extent(xy: FloatArray, yaw: FloatArray, size2: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Smallest and largest longitude of footprint corners (relative to the centre's, unwrapped)."""
     corners = oriented_rectangles(xy, yaw, size2)  # (..., 4, 2)
-    lon_c = np.arctan2(-xy[..., 1], xy[..., 0])
-    lon = np.arctan2(-corners[..., 1], corners[..., 0])
+    lon_c = xy_to_lon(xy)
+    lon = xy_to_lon(corners)
     rel = np.angle(np.exp(1j * (lon - lon_c[..., None])))
     return lon_c + rel.min(axis=-1), lon_c + rel.max(axis=-1)
 
@@ -793,7 +793,7 @@ class _Problem:
         viol += np.maximum(cfg.camera_clearance - near, 0.0).sum(axis=-1)
         viol += np.maximum(self.top[None, :] - lam[:, None] * self.ceiling, 0.0).sum(axis=-1)
         if cfg.keep_in_box:
-            lon = np.arctan2(-xy[..., 1], xy[..., 0])
+            lon = xy_to_lon(xy)
             off = np.abs(np.angle(np.exp(1j * (lon - self.box_mid))))
             viol += np.maximum(off - self.box_half, 0.0).sum(axis=-1)
         return viol

@@ -30,6 +30,7 @@ __all__ = [
     "ray_to_lonlat",
     "pixel_to_ray",
     "ray_to_pixel",
+    "xy_to_lon",
     "pixel_grid",
     "pixel_grid_rays",
     "world_to_pixel",
@@ -147,6 +148,28 @@ def ray_to_lonlat(rays: ArrayLike) -> Array:
     # atan2 against the horizontal norm keeps full precision at the poles (arcsin does not).
     lat = np.arctan2(r[..., 2], np.hypot(r[..., 0], r[..., 1]))
     return np.stack([lon, lat], axis=-1)
+
+
+def xy_to_lon(xy: ArrayLike) -> Array:
+    """Panorama longitude of horizontal directions (x, y): the column a floor-plane point is seen in.
+
+    Parameters
+    ----------
+    xy : (..., 2) float
+        Horizontal components of directions (or floor points relative to the camera).
+
+    Returns
+    -------
+    lon : (...) float
+        ``atan2(-y, x)`` in [-pi, pi] (CONVENTIONS.md: y points at lon = -pi/2).
+
+    Examples
+    --------
+    >>> xy_to_lon([[0.0, 1.0]]).round(12)
+    array([-1.57079633])
+    """
+    a = float_array(xy, "xy", last=2)
+    return np.arctan2(-a[..., 1], a[..., 0])
 
 
 def pixel_to_ray(uv: ArrayLike, width: float, height: float) -> Array:

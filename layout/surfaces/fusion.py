@@ -468,7 +468,10 @@ def fuse_surfaces(gc_probs: ArrayLike, om: OrientationMap, axes: ArrayLike | Non
     lon = pixel_to_lonlat(np.stack([u, np.full(W, H / 2.0)], axis=-1), W, H)[:, 0]
     dirs = np.stack([np.cos(lon), -np.sin(lon), np.zeros(W)], axis=-1) @ A.T
     psi = np.arctan2(dirs[:, 1], dirs[:, 0])
-    lat_of = lambda v: np.pi / 2 - np.pi * v / H  # noqa: E731 - CONVENTIONS.md row -> latitude
+    def lat_of(v):  # row -> latitude, from panogeom.coords
+        v = np.asarray(v, dtype=np.float64)
+        return pixel_to_lonlat(np.stack([np.zeros_like(v), v], axis=-1), W, H)[..., 1]
+
     in_band = (rows >= ci[None, :]) & (rows < fi[None, :])
     if obj is not None:
         in_band &= ~obj
