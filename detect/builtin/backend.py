@@ -29,9 +29,8 @@ centres at integer + 0.5.
 
 from __future__ import annotations
 
-import pickle
-
 import json
+import pickle
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -140,6 +139,10 @@ class BuiltinDetector:
         trained with boxes ending there; snapping makes the panorama driver
         see such boxes as truncated (``TileBox.truncated``), so that NMS on
         the sphere prefers a tile that sees the object whole.
+    flip : bool, optional
+        Also run every tile mirrored left-right and average the two outputs
+        (test-time augmentation, twice the network time; default: ``flip``
+        of the weights' record, chosen on the validation rooms, else False).
 
     Attributes
     ----------
@@ -159,7 +162,7 @@ class BuiltinDetector:
 
     def __init__(self, weights: str | Path | None = None, *, score_threshold: float | None = None,
                  max_detections: int = 50, num_threads: int | None = None, iou_threshold: float = 0.5,
-                 input_size: int | None = None, border_snap: float = 0.03) -> None:
+                 input_size: int | None = None, border_snap: float = 0.03, flip: bool | None = None) -> None:
         torch = torch_module()
         self.weights = Path(weights) if weights is not None else DEFAULT_WEIGHTS
         if not self.weights.is_file():
@@ -184,6 +187,7 @@ class BuiltinDetector:
         if not 0.0 <= float(border_snap) < 0.5:
             raise ValueError(f"border_snap: expected a fraction in [0, 0.5), got {border_snap!r}")
         self.border_snap = float(border_snap)
+        self.flip = bool(self.record.get("flip", False)) if flip is None else bool(flip)
         self.config = config
         self.classes: tuple[str, ...] = tuple(config.classes)
         size = int(self.record.get("input_size", config.input_size)) if input_size is None else int(input_size)
@@ -195,9 +199,8 @@ class BuiltinDetector:
         self._net = net.eval()
 
     def views(self) -> list[PinholeView]:
-        """The tile set the detector was evaluated with (:func:`builtin_views` with the record's settings)."""
-        rec = self.record.get("views", {})
-        return builtin_views(int(rec.get("size", 2 * self.input_size)), wide=bool(rec.get("wide", True)))
+        """The tile set chosen on the validation rooms: :func:`builtin_views` of twice the input size."""
+        return builtin_views(2 * self.input_size, wide=bool(self.record.get("views", {}).get("wide", True)))
 
     def _prepare(self, images: Sequence[np.ndarray]) -> tuple[Any, list[tuple[float, float]]]:
         import cv2
@@ -225,7 +228,16 @@ class BuiltinDetector:
             return []
         x, scales = self._prepare(imgs)
         with torch.inference_mode():
-            heat, size, offset = self._net(x)
+            if self.flip:
+                # Mirrored tiles: cell j of the mirror is cell G-1-j here, and its centre offset dx is 1 - dx.
+                n = len(imgs)
+                heat2, size2, off2 = self._net(torch.cat([x, x.flip(3)]))
+                heat = 0.5 * (heat2[:n] + heat2[n:].flip(3))
+                size = 0.5 * (size2[:n] + size2[n:].flip(3))
+                mirrored = off2[n:].flip(3)
+                offset = 0.5 * (off2[:n] + torch.cat([1.0 - mirrored[:, :1], mirrored[:, 1:]], 1))
+            else:
+                heat, size, offset = self._net(x)
         raw = decode(heat, size, offset, self.score_threshold, self.max_detections)
         out: list[list[ImageDetection]] = []
         for (sx, sy), found, img in zip(scales, raw, imgs):

@@ -215,6 +215,11 @@ def train(data: Path, val: Path, out: Path, *, iterations: int | None = None, mi
     return validate(out, val, record, val_rooms=val_rooms, log=log)
 
 
+def _setting(size: int, wide: bool, flip: bool) -> str:
+    views = "18 + 6 wide views (130 deg, pitch -25)" if wide else "18 views (paper)"
+    return f"input {size}, {views}" + (", flip" if flip else "")
+
+
 def validate(out: Path, val: Path, record: dict[str, Any] | None = None, *, val_rooms: int | None = None,
              log=print) -> dict[str, Any]:
     """Choose the view set and score threshold on validation rooms; write ``out/builtin.json``; return it.
@@ -223,7 +228,8 @@ def validate(out: Path, val: Path, record: dict[str, Any] | None = None, *, val_
     rooms of ``val`` with the paper's 18 views and with the wide views added
     (:func:`~detect.builtin.backend.builtin_views`), each at the training
     input size and 64 pixels more (tiles twice that, area-reduced); the
-    setting with the highest mean AP is kept, and the score threshold with
+    setting with the highest mean AP is tried again with mirrored tiles
+    averaged in (``flip``); the best is kept, and the score threshold with
     the best mean F1 on it.
     ``record`` (default: the existing ``out/builtin.json``) gets the results.
     """
@@ -239,29 +245,35 @@ def validate(out: Path, val: Path, record: dict[str, Any] | None = None, *, val_
     truths = [load_ground_truth(f) for f in folders]
     train_size = int(record["network"]["input_size"])
     results = {}
+
+    def run(size: int, wide: bool, flip: bool) -> None:
+        det = BuiltinDetector(wpath, score_threshold=0.05, input_size=size, flip=flip)
+        dets = detect_rooms(det, folders, builtin_views(2 * size, wide=wide))
+        res = evaluate(dets, truths, det.classes)
+        thr = tune_score_threshold(dets, truths, det.classes)
+        results[(size, wide, flip)] = (res, thr)
+        log(f"validation ({_setting(size, wide, flip)}): mAP {res.mean_ap:.3f}  " +
+            "  ".join(f"{c} {r.ap:.3f}" for c, r in res.classes.items()) + f"  best-F1 score {thr:.2f}")
+
     for size in sorted({train_size, train_size + 64}):
-        det = BuiltinDetector(wpath, score_threshold=0.05, input_size=size)
         for wide in (False, True):
-            dets = detect_rooms(det, folders, builtin_views(2 * size, wide=wide))
-            res = evaluate(dets, truths, det.classes)
-            thr = tune_score_threshold(dets, truths, det.classes)
-            results[(size, wide)] = (res, thr)
-            log(f"validation (input {size}, {'18 + 6 wide' if wide else '18'} views): mAP {res.mean_ap:.3f}  " +
-                "  ".join(f"{c} {r.ap:.3f}" for c, r in res.classes.items()) + f"  best-F1 score {thr:.2f}")
-    size, wide = max(results, key=lambda k: results[k][0].mean_ap)
-    res, thr = results[(size, wide)]
+            run(size, wide, False)
+    size, wide, _ = max(results, key=lambda k: results[k][0].mean_ap)
+    run(size, wide, True)
+    size, wide, flip = max(results, key=lambda k: results[k][0].mean_ap)
+    res, thr = results[(size, wide, flip)]
     record["data"] = {**record.get("data", {}), "val_dir": str(val), "val_seed": _seed_of(val),
                       "val_rooms": len(folders)}
     record["input_size"] = size
+    record["flip"] = bool(flip)
     record["views"] = {"wide": bool(wide), "size": 2 * size}
     record["score_threshold"] = round(float(thr), 3)
     record["validation"] = {
         "iou": 0.5, "difficult_below_fraction": DIFFICULT_FRACTION, "detector_score_threshold": 0.05,
-        "chosen": f"input {size}, " + ("18 + 6 wide views (130 deg, pitch -25)" if wide else "18 views (paper)"),
+        "chosen": _setting(size, wide, flip), "border_snap": BuiltinDetector(wpath).border_snap,
         "ap": {c: round(r.ap, 4) for c, r in res.classes.items()},
         "mean_ap": round(res.mean_ap, 4),
-        "mean_ap_of_each_setting": {f"input {k[0]}, {'18 + 6 wide' if k[1] else '18'} views":
-                                    round(v[0].mean_ap, 4) for k, v in results.items()},
+        "mean_ap_of_each_setting": {_setting(*k): round(v[0].mean_ap, 4) for k, v in results.items()},
     }
     tmp = rpath.with_suffix(".json.tmp")
     tmp.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")

@@ -106,6 +106,26 @@ def test_edges_near_the_tile_border_are_snapped_onto_it(tmp_path):
         BuiltinDetector(path, border_snap=0.7)
 
 
+def test_flip_averaging_is_mirror_symmetric():
+    """With flip, a mirrored tile gives the mirrored boxes (the offsets of the mirror are turned round)."""
+    import cv2
+
+    from detect.tiles import render_tiles
+
+    pano = cv2.cvtColor(cv2.imread(str(ROOM / "pano.jpg")), cv2.COLOR_BGR2RGB)
+    _, tiles = render_tiles(pano, builtin_views(320)[:12:3])
+    det = BuiltinDetector(flip=True, score_threshold=0.2, input_size=160)
+    found = 0
+    for tile in tiles:
+        a = det.detect(tile)
+        found += len(a)
+        b = det.detect(np.ascontiguousarray(tile[:, ::-1]))
+        mirrored = sorted((d.label, round(d.score, 3), tuple(np.round([320 - d.box[2], d.box[1], 320 - d.box[0],
+                                                                       d.box[3]], 2))) for d in b)
+        assert sorted((d.label, round(d.score, 3), tuple(np.round(d.box, 2))) for d in a) == mirrored
+    assert found >= 2
+
+
 def test_views():
     v = builtin_views(160)
     assert len(v) == 24 and all((x.width, x.height) == (160, 160) for x in v)
