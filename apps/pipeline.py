@@ -121,7 +121,9 @@ def _detect(image: np.ndarray, upright: np.ndarray, rect, spec: str, prog: Progr
         if rect is not None:
             dets = [replace(d, box=tuple(float(b) for b in rect.box_to_rectified(d.box, W, H))) for d in dets]
     else:
-        dets = detect_panorama(upright, detector)
+        # A backend tuned on its own tile set (the builtin one: 18 views + wide views) says so with views().
+        views = detector.views() if callable(getattr(detector, "views", None)) else None
+        dets = detect_panorama(upright, detector, views=views)
     prog.say(f"  {len(dets)} objects: " + ", ".join(sorted({d.label for d in dets})))
     return dets
 
@@ -225,7 +227,14 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
         try:
             geom = estimate_room_geometry(surf.labels, h0, object_mask=obj_mask)
         except RoomGeometryError as exc:
-            raise UserError(f"no room layout could be found in this panorama ({exc})") from None
+            if not obj_mask.any():
+                raise UserError(f"no room layout could be found in this panorama ({exc})") from None
+            # The detection boxes hide every floor-wall contact: use the labels under them rather than nothing.
+            notes.append(f"room geometry ignored the object boxes ({exc})")
+            try:
+                geom = estimate_room_geometry(surf.labels, h0)
+            except RoomGeometryError as exc2:
+                raise UserError(f"no room layout could be found in this panorama ({exc2})") from None
         if geom.uncertain:
             notes.append("uncertain layout: " + "; ".join(geom.reasons))
 
