@@ -65,10 +65,14 @@ def _run_room(room: str, out: str, opts: dict, force: bool) -> tuple[str, str | 
         rect = res.extra.get("rectification")
         H, W = res.image.shape[:2]
         dets = []
-        for d in res.detections:  # in the input panorama's pixels, like gt.json
+        used = {id(d) for d in res.detections}
+        # Every candidate down to the pipeline's CANDIDATE_SCORE, so that AP ranks the whole list; "used" marks
+        # the ones above the backend's threshold that went on to the pose and posterior stages.
+        for d in res.extra.get("candidates") or res.detections:  # in the input panorama's pixels, like gt.json
             j = d.to_json()
             if rect is not None:
                 j["bbox_pano"] = [float(b) for b in rect.box_to_input(d.box, W, H)]
+            j["used"] = id(d) in used
             dets.append(j)
         write_json(out_p / "detections.json", {"width": W, "height": H, "detections": dets})
         return room_p.name, None

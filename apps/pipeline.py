@@ -36,6 +36,8 @@ from .errors import UserError
 from .progress import Progress
 
 DEFAULT_CAMERA_HEIGHT = 1.6
+#: Lowest detection score kept as a candidate for evaluation (``PipelineResult.extra["candidates"]``).
+CANDIDATE_SCORE = 0.05
 
 
 @dataclass(frozen=True)
@@ -106,8 +108,11 @@ def _rectify(image: np.ndarray, prog: Progress, notes: list[str]):
     return rect, rect.apply(image)
 
 
-def _detect(image: np.ndarray, upright: np.ndarray, rect, spec: str, prog: Progress) -> list:
-    """Detections in the upright panorama (boxes read from a file refer to the input: mapped)."""
+def _detect(image: np.ndarray, upright: np.ndarray, rect, spec: str, prog: Progress) -> tuple[list, list]:
+    """Detections in the upright panorama (boxes read from a file refer to the input: mapped).
+
+    Returns the detections the pipeline uses (at or above the backend's score threshold) and all the
+    candidates down to :data:`CANDIDATE_SCORE` (for average precision in ``pano2cad eval``)."""
     from detect.backends import ModelFileError, get_detector
     from detect.tiles import detect_panorama
 
@@ -120,12 +125,19 @@ def _detect(image: np.ndarray, upright: np.ndarray, rect, spec: str, prog: Progr
         dets = detect_panorama(image, detector)
         if rect is not None:
             dets = [replace(d, box=tuple(float(b) for b in rect.box_to_rectified(d.box, W, H))) for d in dets]
+        candidates = dets
     else:
         # A backend tuned on its own tile set (the builtin one: 18 views + wide views) says so with views().
         views = detector.views() if callable(getattr(detector, "views", None)) else None
-        dets = detect_panorama(upright, detector, views=views)
+        # Detect down to CANDIDATE_SCORE so that an evaluation can rank the whole list (AP integrates over
+        # every recall level); the pipeline keeps the detections at or above the backend's own threshold.
+        threshold = getattr(detector, "score_threshold", None)
+        if threshold is not None and float(threshold) > CANDIDATE_SCORE:
+            detector.score_threshold = CANDIDATE_SCORE
+        candidates = detect_panorama(upright, detector, views=views)
+        dets = candidates if threshold is None else [d for d in candidates if d.score >= float(threshold)]
     prog.say(f"  {len(dets)} objects: " + ", ".join(sorted({d.label for d in dets})))
-    return dets
+    return dets, candidates
 
 
 def _object_mask(dets: list, shape: tuple[int, int]) -> np.ndarray:
@@ -135,6 +147,18 @@ def _object_mask(dets: list, shape: tuple[int, int]) -> np.ndarray:
         return np.zeros(shape, bool)
     return boxes_mask(np.array([d.box for d in dets]), shape[1])
 
+
+def _outline(model) -> np.ndarray:
+    """Object-frame outline points of a library model (cached per model id and size) for the box fits."""
+    key = (model.id, len(model.vertices), tuple(float(v) for v in model.size))
+    if key not in _OUTLINES:
+        from layout.sampler import hull_outline
+
+        _OUTLINES[key] = hull_outline(model.vertices)
+    return _OUTLINES[key]
+
+
+_OUTLINES: dict[tuple, np.ndarray] = {}
 
 _EO_BINS = np.arange(72) * (2.0 * np.pi / 72)
 
@@ -211,9 +235,10 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
     R = rect.rotation if rect is not None else np.eye(3)
 
     dets: list = []
+    candidates: list = []
     if options.objects:
         with prog.stage("detect", f"object detection ({options.detector})"):
-            dets = _detect(image, upright, rect, options.detector, prog)
+            dets, candidates = _detect(image, upright, rect, options.detector, prog)
     obj_mask = _object_mask(dets, (H, W))
 
     with prog.stage("surfaces", "surface labels (orientation map + geometric context)"):
@@ -249,7 +274,7 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
             continue
         model, yaw, e_o = p
         objects.append(DetectedObject(d.label, d.box, model.size, 0.0 if yaw is None else yaw, model_id=model.id,
-                                      score=float(d.score), symmetric=yaw is None))
+                                      score=float(d.score), symmetric=yaw is None, outline=_outline(model)))
         eo.append(e_o)
 
     with prog.stage("posterior", f"MAP sampling ({options.samples} samples)"):
@@ -313,4 +338,5 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
                   objects=tuple(objs), floor_z=0.0, rotation=R, scale=scene.scale if objects else None,
                   image_width=W, image_height=H, timing=timing)
     return PipelineResult(scene=scene, image=image, labels_input=labels_input, detections=dets,
-                          warnings=tuple(notes), extra={"rectification": rect, "geometry": geom, "posterior": post})
+                          warnings=tuple(notes), extra={"rectification": rect, "geometry": geom, "posterior": post,
+                                 "candidates": candidates})

@@ -46,9 +46,17 @@ The scale starts at a wall height of 2.5 m (the paper's Table 2 setting);
   (:func:`fit_boxes`), median over the objects; the positions are then
   fitted again at that camera height (the box width alone fixes the
   distance of an object seen edge-on badly when its yaw is off);
-* each epoch proposes scale-only moves (normal around the seed in wall
-  height, a fifth of them uniform in the range), then coordinate-wise object
-  moves (each proposal moves ONE object: position as in the paper, yaw
+* the predicted box edges come from the model's outline
+  (:attr:`DetectedObject.outline`, convex hull points) where given: a
+  cuboid puts a plant's pot or a chair's legs too near and the camera
+  4-9 % too high (measured on the seed-0 set with the true models);
+* the scale then stays (``sample_scale=False``): on the seed-0 set, scale
+  moves driven by ``E_s`` and the context prior grew the rooms whose
+  estimated floor polygon was too small for the objects, and with them the
+  wall height (docs/EVALUATION.md, Table 2 section);
+* each epoch proposes scale-only moves when ``sample_scale`` (normal around
+  the seed in wall height, a fifth of them uniform in the range), then
+  coordinate-wise object moves (each proposal moves ONE object: position as in the paper, yaw
   around the seed); the per-object winners are combined when the
   combination is valid and better, else the single best move is taken;
   proposal widths anneal geometrically from the paper's to ``anneal_to``
@@ -107,6 +115,8 @@ __all__ = [
     "initialise_objects",
     "camera_height_estimates",
     "fit_boxes",
+    "box_scale",
+    "hull_outline",
     "SamplerConfig",
     "SceneEnergies",
     "PosteriorResult",
@@ -151,6 +161,14 @@ class DetectedObject:
     symmetric : bool or None
         Rotationally symmetric (no alignment term); None: True for the
         classes in :data:`SYMMETRIC_CLASSES`.
+    outline : (M, 3) float or None
+        Points of the model's convex hull (its vertices and points along its
+        edges, e.g. :func:`hull_outline`) in the object frame: x along the
+        front, y to the left, z up from the base, x and y centred on the
+        footprint. Given, :func:`fit_boxes` predicts the box edges from
+        these points instead of the ``size`` cuboid: a plant's pot, a
+        chair's legs or a TV's stand stand inside the cuboid, so the cuboid
+        puts the object's lowest point too near and the camera too high.
     """
 
     cls: str
@@ -162,6 +180,7 @@ class DetectedObject:
     score: float | None = None
     elevation: float = 0.0
     symmetric: bool | None = None
+    outline: FloatArray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.cls, str) or not self.cls:
@@ -178,6 +197,12 @@ class DetectedObject:
             raise ValueError(f"elevation: expected a height >= 0 in metres, got {self.elevation!r}")
         for a in (box, size):
             a.setflags(write=False)
+        if self.outline is not None:
+            pts = np.array(self.outline, dtype=np.float64)
+            if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 4 or not np.all(np.isfinite(pts)):
+                raise ValueError(f"outline: expected (M, 3) finite points, M >= 4, got shape {np.shape(self.outline)}")
+            pts.setflags(write=False)
+            object.__setattr__(self, "outline", pts)
         object.__setattr__(self, "bbox_pano", box)
         object.__setattr__(self, "size", size)
         object.__setattr__(self, "yaw", float(self.yaw))
@@ -366,6 +391,112 @@ def initialise_objects(objects: Sequence[DetectedObject], width: int, height: in
                           camera_heights=h, fitted_camera_heights=fitted)
 
 
+def hull_outline(vertices: ArrayLike, spacing: float = 0.03, max_points: int = 400) -> FloatArray:
+    """Object-frame outline points of a model for :attr:`DetectedObject.outline`.
+
+    The convex hull's vertices plus points every ``spacing`` metres along
+    its edges (the lowest and highest points of a convex body seen from a
+    camera lie on its edges, not only at its corners), centred on the
+    footprint in x and y with z from the base.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float
+        Model vertices, metres, x front, y left, z up.
+    spacing : float
+        Largest gap between outline points along a hull edge, metres.
+    max_points : int
+        Upper bound; the spacing grows when needed.
+
+    Returns
+    -------
+    (M, 3) float
+
+    Examples
+    --------
+    >>> cube = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (2, 3)], float)
+    >>> pts = hull_outline(cube, spacing=0.5)
+    >>> pts.min(axis=0).tolist(), pts.max(axis=0).tolist(), len(pts)  # 8 + 12 edge midpoints + 6 x 2 on diagonals
+    ([-0.5, -0.5, 0.0], [0.5, 0.5, 1.0], 32)
+    """
+    from scipy.spatial import ConvexHull
+
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    v = v - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    hull = ConvexHull(v, qhull_options="QJ")
+    pts = v[hull.vertices]
+    # edges of the hull's facets, merged coplanar triangles included (their diagonals add points, harmlessly)
+    tri = hull.simplices
+    edges = np.unique(np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1), axis=0)
+    a, b = v[edges[:, 0]], v[edges[:, 1]]
+    length = np.linalg.norm(b - a, axis=1)
+    while True:
+        k = np.maximum(np.ceil(length / spacing).astype(int) - 1, 0)
+        if len(pts) + k.sum() <= max_points or spacing > 10.0:
+            break
+        spacing *= 1.5
+    t = np.concatenate([np.arange(1, n + 1) / (n + 1) for n in k]) if k.sum() else np.zeros(0)
+    e = np.repeat(np.arange(len(edges)), k)
+    inner = a[e] + t[:, None] * (b[e] - a[e])
+    return np.concatenate([pts, inner])
+
+
+def _outline_angles(xy: FloatArray, yaw: FloatArray, outline: FloatArray, elevation: FloatArray,
+                    cam_h: FloatArray, mid: FloatArray) -> FloatArray:
+    """:func:`_box_angles` from outline points (N, M, 3) in the object frame (padded by repeating points)."""
+    c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+    px, py = outline[..., 0], outline[..., 1]
+    x = xy[:, 0:1] + c * px - s * py
+    y = xy[:, 1:2] + s * px + c * py
+    z = elevation[:, None] + outline[..., 2] - cam_h[:, None]
+    rel = _wrap(np.arctan2(-y, x) - mid[:, None])
+    lat = np.arctan2(z, np.hypot(x, y))
+    return np.stack([rel.min(axis=1), lat.max(axis=1), rel.max(axis=1), lat.min(axis=1)], axis=1)
+
+
+def box_scale(objects: Sequence[DetectedObject], width: int, height: int, camera_height: float, ceiling_z: float,
+              wall_height_range: tuple[float, float] = (2.0, 3.5),
+              init: InitialObjects | None = None) -> tuple[float, FloatArray]:
+    """The scale the detection boxes say, and the objects placed at it (the improved initialisation).
+
+    Each object's position and camera height are fitted to all four edges
+    of its box (:func:`fit_boxes`); the scale is the median camera height
+    over the objects divided by the room's ``camera_height`` at scale 1,
+    clipped to ``wall_height_range``; the positions are then fitted again
+    at that camera height.
+
+    Parameters
+    ----------
+    objects : sequence of N DetectedObject
+    width, height : int
+        Size of the panorama the boxes refer to.
+    camera_height, ceiling_z : float
+        Camera height and ceiling height of the room at scale 1.
+    wall_height_range : (float, float)
+        Allowed wall heights, metres.
+    init : InitialObjects, optional
+        :func:`initialise_objects` of the same objects, if already computed.
+
+    Returns
+    -------
+    scale : float
+        1.0 when no object gives a camera height.
+    centers : (N, 3) float
+        Metric object centres at that scale.
+    """
+    objs = list(objects)
+    if not objs:
+        return 1.0, np.zeros((0, 3))
+    init = initialise_objects(objs, width, height) if init is None else init
+    est = init.fitted_camera_heights[np.isfinite(init.fitted_camera_heights)]
+    lam = float(np.median(est)) / camera_height if est.size else 1.0
+    lo_h, hi_h = (float(v) for v in wall_height_range)
+    lam = float(np.clip(lam, lo_h / ceiling_z, hi_h / ceiling_z))
+    centers = fit_boxes(objs, init.centers, width, height, camera_height=lam * camera_height)[0]
+    return lam, centers
+
+
 def _box_angles(xy: FloatArray, yaw: FloatArray, size: FloatArray, elevation: FloatArray, cam_h: FloatArray,
                 mid: FloatArray) -> FloatArray:
     """(N, 4) edges of the boxes seen from the camera: longitudes of the left and right edges relative
@@ -432,9 +563,18 @@ def fit_boxes(objects: Sequence[DetectedObject], centers: ArrayLike, width: int,
     p = np.column_stack([c[:, :2], h]) if free_h else c[:, :2].copy()
     k = p.shape[1]
 
+    has = np.array([o.outline is not None for o in objs])
+    if has.any():
+        m = max(len(o.outline) for o in objs if o.outline is not None)
+        outline = np.stack([np.resize(o.outline, (m, 3)) if o.outline is not None else np.zeros((m, 3))
+                            for o in objs])
+
     def resid(q: FloatArray) -> FloatArray:
         hh = q[:, 2] if free_h else h
-        return _box_angles(q[:, :2], yaw, size, elev, hh, mid) - target
+        ang = _box_angles(q[:, :2], yaw, size, elev, hh, mid)
+        if has.any():
+            ang[has] = _outline_angles(q[has, :2], yaw[has], outline[has], elev[has], hh[has], mid[has])
+        return ang - target
 
     def cost(r: FloatArray) -> FloatArray:
         return np.sum(r * r, axis=1)
@@ -578,6 +718,20 @@ class SamplerConfig:
         Smallest allowed distance from the camera axis to a footprint, metres.
     wall_tol : float
         Allowed footprint penetration into a wall, metres.
+    sample_scale : bool
+        False: the scale stays at its initial value (the camera height of
+        the boxes in ``"improved"`` mode) and only the objects are sampled.
+        The scale moves of the sampler are driven by ``E_s`` and the context
+        prior, which reward a larger room whenever the estimated floor
+        polygon is too small for the objects; the boxes measure it better.
+    box_weight, box_sigma : float
+        ``w_b`` and the scale (radians) of the box term ``E_b`` (not in the
+        paper: 0): the sum over objects and their four box edges of the
+        Geman-McClure misfit ``x^2 / (1 + x^2)``, ``x`` = (predicted edge -
+        detected edge) / ``box_sigma``, the predicted edges from the object's
+        outline or cuboid at the hypothesis' camera height. It ties each
+        object to its detection box, robustly (a box cut by an occluder
+        costs at most 1 per edge).
     """
 
     mode: SamplerMode = "paper"
@@ -600,6 +754,9 @@ class SamplerConfig:
     overlap_tol: float = 1e-4
     camera_clearance: float = 0.1
     wall_tol: float = 1e-6
+    sample_scale: bool = True
+    box_weight: float = 0.0
+    box_sigma: float = math.radians(1.0)
 
     def __post_init__(self) -> None:
         if self.mode not in ("paper", "improved"):
@@ -619,11 +776,11 @@ class SamplerConfig:
         pv = tuple(float(v) for v in self.position_variance)
         if len(pv) != 2 or not all(v > 0 for v in pv):
             raise ValueError(f"position_variance: expected two positive numbers, got {self.position_variance!r}")
-        for name in ("yaw_variance", "wall_height_sigma", "anneal_to"):
+        for name in ("yaw_variance", "wall_height_sigma", "anneal_to", "box_sigma"):
             if not float(getattr(self, name)) > 0:
                 raise ValueError(f"{name}: expected a value > 0, got {getattr(self, name)!r}")
         for name in ("surface_weight", "orientation_weight", "nu_n", "mu", "overlap_tol", "camera_clearance",
-                     "wall_tol"):
+                     "wall_tol", "box_weight"):
             v = float(getattr(self, name))
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name}: expected a finite value >= 0, got {getattr(self, name)!r}")
@@ -634,10 +791,11 @@ class SamplerConfig:
 
     @classmethod
     def improved(cls, **overrides: object) -> "SamplerConfig":
-        """The improved scheme (module docstring): scale fitted to the boxes, coordinate-wise annealed moves,
-        ``surface_weight=100``, ``keep_in_box=True``; ``overrides`` replace any of these."""
+        """The improved scheme (module docstring): scale fitted to the boxes and kept (``sample_scale=False``),
+        coordinate-wise annealed moves, ``surface_weight=100``, ``keep_in_box=True``; ``overrides`` replace
+        any of these."""
         opts: dict[str, object] = {"mode": "improved", "initial_wall_height": None, "surface_weight": 100.0,
-                                   "keep_in_box": True}
+                                   "keep_in_box": True, "sample_scale": False}
         opts.update(overrides)
         return cls(**opts)  # type: ignore[arg-type]
 
@@ -653,7 +811,9 @@ class SceneEnergies:
     object_wall, object_object : float
         ``E_ow`` and ``E_oo`` (m^2) of the context prior.
     total : float
-        ``w_s E_s + w_o E_o + E_ow + mu E_oo``.
+        ``w_s E_s + w_o E_o + E_ow + mu E_oo + w_b E_b``.
+    box : float
+        ``E_b``, the box term (0 unless ``SamplerConfig.box_weight > 0``).
     """
 
     surface: float
@@ -661,6 +821,7 @@ class SceneEnergies:
     object_wall: float
     object_object: float
     total: float
+    box: float = 0.0
 
     def as_array(self) -> FloatArray:
         """``(5,)`` float: surface, orientation, object_wall, object_object, total."""
@@ -718,6 +879,7 @@ class _Batch:
     overlap: FloatArray
     total: FloatArray
     violation: FloatArray
+    box: FloatArray | None = None
 
     @property
     def key(self) -> FloatArray:
@@ -726,7 +888,8 @@ class _Batch:
 
     def energies(self, i: int) -> SceneEnergies:
         return SceneEnergies(float(self.surface[i]), float(self.orientation[i]), float(self.wall[i]),
-                             float(self.overlap[i]), float(self.total[i]))
+                             float(self.overlap[i]), float(self.total[i]),
+                             0.0 if self.box is None else float(self.box[i]))
 
 
 class _Problem:
@@ -753,6 +916,31 @@ class _Problem:
         left, right = _box_lon(objects, image_width, image_height)
         self.box_mid = 0.5 * (left + right)
         self.box_half = np.where(right - left < np.pi, 0.5 * (right - left), np.inf)  # no limit for huge boxes
+        if self.n and cfg.box_weight > 0:
+            box = np.array([o.bbox_pano for o in objects])
+            lat = pixel_to_lonlat(np.stack([np.zeros((self.n, 2)), box[:, [1, 3]]], -1), image_width,
+                                  image_height)[..., 1]
+            self.box_target = np.stack([left - self.box_mid, lat[:, 0], right - self.box_mid, lat[:, 1]], axis=1)
+            self.elevation = np.array([o.elevation for o in objects])
+            self.has_outline = np.array([o.outline is not None for o in objects])
+            m = max((len(o.outline) for o in objects if o.outline is not None), default=1)
+            self.outline = np.stack([np.resize(o.outline, (m, 3)) if o.outline is not None else np.zeros((m, 3))
+                                     for o in objects])
+
+    def box_energy(self, lam: FloatArray, xy: FloatArray, yaw: FloatArray) -> FloatArray:
+        """``E_b`` (B,): robust misfit of the objects' predicted box edges to their detection boxes."""
+        b, n = len(lam), self.n
+        flat_xy, flat_yaw = xy.reshape(b * n, 2), yaw.reshape(b * n)
+        cam = np.repeat(lam * self.h0, n)
+        mid = np.tile(self.box_mid, b)
+        elev = np.tile(self.elevation, b)
+        ang = _box_angles(flat_xy, flat_yaw, np.tile(self.sizes, (b, 1)), elev, cam, mid)
+        has = np.tile(self.has_outline, b)
+        if has.any():
+            ang[has] = _outline_angles(flat_xy[has], flat_yaw[has], np.tile(self.outline, (b, 1, 1))[has],
+                                       elev[has], cam[has], mid[has])
+        x2 = ((ang - np.tile(self.box_target, (b, 1))) / self.cfg.box_sigma) ** 2
+        return (x2 / (1.0 + x2)).reshape(b, n * 4).sum(axis=1)
 
     def evaluate(self, lam: FloatArray, xy: FloatArray, yaw: FloatArray) -> _Batch:
         """Energies of hypotheses ``lam (B,)``, ``xy (B, N, 2)``, ``yaw (B, N)``."""
@@ -769,9 +957,13 @@ class _Problem:
         ctx = context_energy(xy, yaw, self.size2, floors, nu_n=cfg.nu_n, mu=cfg.mu, alignment=self.modes,
                              alignment_weights=self.weights, anchor_offsets=self.anchors)
         total = cfg.surface_weight * es + cfg.orientation_weight * eo + ctx.total
+        eb = None
+        if cfg.box_weight > 0:
+            eb = self.box_energy(lam, xy, yaw)
+            total = total + cfg.box_weight * eb
         viol = self._violation(lam, xy, yaw, ctx.pair_overlap)
         return _Batch(es, eo, np.asarray(ctx.wall, dtype=np.float64), np.asarray(ctx.overlap, dtype=np.float64),
-                      total, viol)
+                      total, viol, eb)
 
     def _violation(self, lam: FloatArray, xy: FloatArray, yaw: FloatArray, pair: FloatArray) -> FloatArray:
         cfg = self.cfg
@@ -995,16 +1187,13 @@ def map_estimate(likelihood: SurfaceLikelihood, objects: Sequence[DetectedObject
     n = prob.n
     init = initialise_objects(objs, image_width, image_height)
     yaw_pose = init.yaws.copy()
-    lo_h, hi_h = (float(v) for v in cfg.wall_height_range)
     xy = init.centers[:, :2].copy()
     if cfg.initial_wall_height is not None:
         lam0 = cfg.initial_wall_height / prob.ceiling
     else:
-        est = init.fitted_camera_heights[np.isfinite(init.fitted_camera_heights)]
-        lam0 = float(np.median(est)) / prob.h0 if est.size else 1.0
-        lam0 = float(np.clip(lam0, lo_h / prob.ceiling, hi_h / prob.ceiling))
-        if n:  # positions from all four box edges at that camera height
-            xy = fit_boxes(objs, init.centers, image_width, image_height, camera_height=lam0 * prob.h0)[0][:, :2]
+        lam0, centers = box_scale(objs, image_width, image_height, prob.h0, prob.ceiling, cfg.wall_height_range,
+                                  init=init)
+        xy = centers[:, :2]
     yaw = init.yaws.copy()
     lam = lam0
     initial = prob.evaluate(np.array([lam]), xy[None], yaw[None])
@@ -1020,7 +1209,7 @@ def map_estimate(likelihood: SurfaceLikelihood, objects: Sequence[DetectedObject
     if cfg.mode == "paper":
         epochs = int(cfg.epochs) if cfg.n_samples is None else max(1, int(cfg.n_samples) // s)
     else:
-        per_epoch = s + n * s + (1 if n > 1 else 0)
+        per_epoch = max(1, (s if cfg.sample_scale else 0) + n * s + (1 if n > 1 else 0))
         epochs = int(cfg.epochs) if cfg.n_samples is None else max(1, (int(cfg.n_samples) - 1) // per_epoch)
     history = np.zeros((epochs + 1, 6))
     history[0] = np.append(seed.energies(0).as_array(), lam * prob.ceiling)
@@ -1052,7 +1241,8 @@ def map_estimate(likelihood: SurfaceLikelihood, objects: Sequence[DetectedObject
 def _take(b: _Batch, i: int) -> _Batch:
     """Row ``i`` of a batch as a batch of one."""
     sl = slice(i, i + 1)
-    return _Batch(b.surface[sl], b.orientation[sl], b.wall[sl], b.overlap[sl], b.total[sl], b.violation[sl])
+    return _Batch(b.surface[sl], b.orientation[sl], b.wall[sl], b.overlap[sl], b.total[sl], b.violation[sl],
+                  None if b.box is None else b.box[sl])
 
 
 @dataclass
@@ -1076,7 +1266,7 @@ def _paper_epoch(prob: _Problem, st: _State, yaw_pose: FloatArray, g: np.random.
     """One epoch of the paper's scheme: every sample moves the scale and every object. (evaluated, invalid)."""
     cfg, n, s = prob.cfg, prob.n, int(prob.cfg.samples_per_epoch)
     lo_h, hi_h = (float(v) for v in cfg.wall_height_range)
-    lam_s = g.uniform(lo_h, hi_h, size=s) / prob.ceiling
+    lam_s = g.uniform(lo_h, hi_h, size=s) / prob.ceiling if cfg.sample_scale else np.full(s, st.lam)
     along, across, d = _ray_frames(st.xy)
     sd_a = np.sqrt(cfg.position_variance[0] * d)
     sd_c = np.sqrt(cfg.position_variance[1] * d)
@@ -1092,14 +1282,16 @@ def _paper_epoch(prob: _Problem, st: _State, yaw_pose: FloatArray, g: np.random.
 def _improved_epoch(prob: _Problem, st: _State, shrink: float, g: np.random.Generator) -> tuple[int, int]:
     """One epoch of the improved scheme (scale-only moves, then one-object moves). (evaluated, invalid)."""
     cfg, n, s = prob.cfg, prob.n, int(prob.cfg.samples_per_epoch)
-    lo_h, hi_h = (float(v) for v in cfg.wall_height_range)
-    hs = np.clip(st.lam * prob.ceiling + g.normal(0.0, cfg.wall_height_sigma * shrink, size=s), lo_h, hi_h)
-    hs = np.where(g.random(s) < 0.2, g.uniform(lo_h, hi_h, size=s), hs)
-    lam_s = hs / prob.ceiling
-    res = prob.evaluate(lam_s, np.broadcast_to(st.xy, (s, n, 2)), np.broadcast_to(st.yaw, (s, n)))
-    k = int(np.argmin(res.key))
-    st.offer(res, k, lam_s[k], st.xy, st.yaw)
-    evaluated, invalid = s, int(np.count_nonzero(res.violation > 0))
+    evaluated = invalid = 0
+    if cfg.sample_scale:
+        lo_h, hi_h = (float(v) for v in cfg.wall_height_range)
+        hs = np.clip(st.lam * prob.ceiling + g.normal(0.0, cfg.wall_height_sigma * shrink, size=s), lo_h, hi_h)
+        hs = np.where(g.random(s) < 0.2, g.uniform(lo_h, hi_h, size=s), hs)
+        lam_s = hs / prob.ceiling
+        res = prob.evaluate(lam_s, np.broadcast_to(st.xy, (s, n, 2)), np.broadcast_to(st.yaw, (s, n)))
+        k = int(np.argmin(res.key))
+        st.offer(res, k, lam_s[k], st.xy, st.yaw)
+        evaluated, invalid = s, int(np.count_nonzero(res.violation > 0))
     if n == 0:
         return evaluated, invalid
     # proposal (j, i) moves object j only

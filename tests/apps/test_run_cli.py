@@ -132,3 +132,21 @@ def test_huge_panorama_is_downscaled_within_memory(tmp_path):
     if r.returncode == 0:
         scene = json.loads((tmp_path / "o" / "scene.json").read_text())
         assert scene["image"]["width"] == 512
+
+
+def test_detection_keeps_the_ranked_candidates_for_average_precision(room_png):
+    """The pipeline uses detections at the backend's threshold; evaluation ranks every candidate down to
+    CANDIDATE_SCORE (AP integrates over all recall levels, a threshold would cut the curve)."""
+    pytest.importorskip("torch")
+    from apps.imageio import read_panorama
+    from apps.pipeline import CANDIDATE_SCORE, _detect
+    from apps.progress import Progress
+    from detect.builtin import BuiltinDetector
+
+    img = read_panorama(room_png / "pano.png", max_width=512).image
+    used, cands = _detect(img, img, None, "builtin", Progress(quiet=True))
+    thr = BuiltinDetector().score_threshold
+    assert CANDIDATE_SCORE < thr
+    assert all(d.score >= thr for d in used) and all(d.score >= CANDIDATE_SCORE for d in cands)
+    assert {id(d) for d in used} <= {id(d) for d in cands}
+    assert [d for d in cands if d.score >= thr] == used

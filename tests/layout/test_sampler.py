@@ -254,3 +254,69 @@ def test_config_and_input_errors():
         map_estimate(lik, [{"cls": "bed"}], image_width=W, image_height=W // 2)  # type: ignore[list-item]
     with pytest.raises(ValueError, match="likelihood: expected a SurfaceLikelihood"):
         map_estimate(None, dets, image_width=W, image_height=W // 2)  # type: ignore[arg-type]
+
+
+def _plant_vertices():
+    """A potted plant: a 0.3 m pot under a 0.8 m wide crown (vertices of two stacked boxes)."""
+    pot = [[x, y, z] for x in (-0.15, 0.15) for y in (-0.15, 0.15) for z in (0.0, 0.35)]
+    crown = [[x, y, z] for x in (-0.4, 0.4) for y in (-0.4, 0.4) for z in (0.35, 1.2)]
+    return np.array(pot + crown, float)
+
+
+def test_outline_removes_the_cuboid_bias_of_a_narrow_base():
+    """The lowest point of a plant is its pot, inside the cuboid of its crown: the cuboid puts the floor
+    contact too near and the camera too high; the hull outline gives the true camera height."""
+    from layout.sampler import hull_outline
+    from panogeom.coords import world_to_pixel
+
+    v = _plant_vertices()
+    cam = 1.55
+    uv = world_to_pixel(hull_outline(v, spacing=0.005) + [2.5, 1.0, 0.0], 1024, 512, camera_height=cam)
+    box = [uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()]
+    size = [0.8, 0.8, 1.2]
+    plain = DetectedObject("plant", box, size, 0.0)
+    outlined = DetectedObject("plant", box, size, 0.0, outline=hull_outline(v))
+    h_plain = initialise_objects([plain], 1024, 512).fitted_camera_heights[0]
+    h_outl = initialise_objects([outlined], 1024, 512).fitted_camera_heights[0]
+    assert abs(h_plain - cam) > 0.01  # the bias the outline is for
+    assert h_outl == pytest.approx(cam, abs=0.002)
+    with pytest.raises(ValueError, match="outline"):
+        DetectedObject("plant", box, size, 0.0, outline=np.zeros((2, 3)))
+
+
+def test_box_scale_and_fixed_sampled_scale():
+    """box_scale gives the improved initialisation's scale; sample_scale=False keeps it through the sampling."""
+    from layout.sampler import box_scale
+
+    pl, labels, dets, floor0, ceil0 = synthetic(3, yaw_noise_deg=0.0)
+    lam, centers = box_scale(dets, W, W // 2, 1.6, ceil0)
+    assert lam * 1.6 == pytest.approx(pl.camera_height, rel=0.01)
+    assert np.allclose(centers[:, :2], pl.centers[:, :2], atol=0.05)
+    lik = surface_likelihood(observe_labels(labels, [d.bbox_pano for d in dets], width=128,
+                                            object_pixels="matched"), floor0, ceil0, 1.6)
+    cfg = SamplerConfig.improved(epochs=4, samples_per_epoch=6, sample_scale=False)
+    res = map_estimate(lik, dets, image_width=W, image_height=W // 2, config=cfg, rng=0)
+    assert res.scene.scale == pytest.approx(lam) and np.all(res.history[:, 5] == res.history[0, 5])
+    check_valid(res.scene)
+
+
+def test_box_term_is_zero_at_the_truth_and_grows_off_it():
+    """E_b: predicted box edges against the detection boxes, robust (at most 1 per edge)."""
+    pl, labels, dets, floor0, ceil0 = synthetic(5, yaw_noise_deg=0.0)
+    lik = surface_likelihood(observe_labels(labels, [d.bbox_pano for d in dets], width=128,
+                                            object_pixels="matched"), floor0, ceil0, 1.6)
+    cfg = SamplerConfig.improved(epochs=3, samples_per_epoch=5, box_weight=10.0)
+    lam = pl.camera_height / 1.6
+    from layout.sampler import _Problem
+    from layout.likelihood import orientation_likelihood
+
+    prob = _Problem(lik, dets, orientation_likelihood(None, [d.cls for d in dets]), cfg, W, W // 2)
+    xy, yaw = pl.centers[None, :, :2], pl.yaws[None]
+    moved = xy + np.array([0.3, 0.0])
+    e = prob.box_energy(np.array([lam, lam, lam * 1.1]), np.concatenate([xy, moved, xy]), np.repeat(yaw, 3, 0))
+    assert e[0] < 0.05 and e[1] > e[0] + 1.0 and e[2] > e[0] + 0.5 and np.all(e <= 4 * len(dets))
+    res = map_estimate(lik, dets, image_width=W, image_height=W // 2, config=cfg, rng=0)
+    assert res.energies.box >= 0 and res.energies.total >= cfg.box_weight * res.energies.box - 1e-9
+    check_valid(res.scene)
+    with pytest.raises(ValueError, match="box_weight"):
+        SamplerConfig(box_weight=-1.0)
