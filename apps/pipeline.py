@@ -182,11 +182,19 @@ def _poses(upright: np.ndarray, dets: list, prog: Progress) -> list:
     for cls, idx in sorted(by_class.items()):
         # Box crops, no grab-cut masks: measured on synthetic rooms, grab-cut masks flipped TVs and beds
         # (front/back) where the plain box crop was within a few degrees (docs/EVALUATION.md, pipeline notes).
-        crops, views = [], []
+        crops, views, kept = [], [], []
         for i in idx:
-            crop, view = extract_crop(upright, dets[i].box)
+            try:
+                crop, view = extract_crop(upright, dets[i].box)
+            except ValueError as exc:  # a box 180 degrees wide or more has no perspective crop: no pose
+                prog.say(f"  no pose for a {cls}: {exc}")
+                continue
             crops.append(crop)
             views.append(view)
+            kept.append(i)
+        idx = kept
+        if not idx:
+            continue
         res = estimate_poses(renders, cls, crops)
         for i, view, est in zip(idx, views, res.estimates):
             model = lib[est.model_id]
@@ -258,8 +266,14 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
             notes.append(f"room geometry ignored the object boxes ({exc})")
             try:
                 geom = estimate_room_geometry(surf.labels, h0)
-            except RoomGeometryError as exc2:
-                raise UserError(f"no room layout could be found in this panorama ({exc2})") from None
+            except RoomGeometryError:
+                # The labels themselves were computed with the boxes masked: label the panorama again without
+                # them (what --no-objects does) and keep those labels for the room and the sampler.
+                surf = estimate_surfaces(upright)
+                try:
+                    geom = estimate_room_geometry(surf.labels, h0)
+                except RoomGeometryError as exc2:
+                    raise UserError(f"no room layout could be found in this panorama ({exc2})") from None
         if geom.uncertain:
             notes.append("uncertain layout: " + "; ".join(geom.reasons))
 

@@ -98,7 +98,7 @@ from typing import Collection, Literal, Mapping, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from panogeom.coords import DEFAULT_CAMERA_HEIGHT, pixel_to_lonlat, xy_to_lon
+from panogeom.coords import DEFAULT_CAMERA_HEIGHT, pixel_to_lonlat, ray_to_lonlat, xy_to_lon
 
 from .context import ALIGNMENT_MODES, MU, NU_N, context_energy, pair_overlap_areas
 from .likelihood import OrientationLikelihood, OrientationSpec, SurfaceLikelihood, orientation_likelihood
@@ -442,17 +442,54 @@ def hull_outline(vertices: ArrayLike, spacing: float = 0.03, max_points: int = 4
     return np.concatenate([pts, inner])
 
 
-def _outline_angles(xy: FloatArray, yaw: FloatArray, outline: FloatArray, elevation: FloatArray,
-                    cam_h: FloatArray, mid: FloatArray) -> FloatArray:
-    """:func:`_box_angles` from outline points (N, M, 3) in the object frame (padded by repeating points)."""
-    c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
-    px, py = outline[..., 0], outline[..., 1]
-    x = xy[:, 0:1] + c * px - s * py
-    y = xy[:, 1:2] + s * px + c * py
-    z = elevation[:, None] + outline[..., 2] - cam_h[:, None]
-    rel = _wrap(np.arctan2(-y, x) - mid[:, None])
-    lat = np.arctan2(z, np.hypot(x, y))
-    return np.stack([rel.min(axis=1), lat.max(axis=1), rel.max(axis=1), lat.min(axis=1)], axis=1)
+class _BoxEdges:
+    """Detection boxes of N objects as edge angles, and the edges their models predict (shared by
+    :func:`fit_boxes` and the box term of the sampler).
+
+    ``target`` (N, 4): box left and right longitudes relative to the box's middle ``mid`` (N,), and the
+    latitudes of its top and bottom. :meth:`residual` predicts the same four angles from the outline
+    (:attr:`DetectedObject.outline`) where given, else from the ``size`` cuboid.
+    """
+
+    def __init__(self, objects: Sequence[DetectedObject], width: int, height: int) -> None:
+        n = len(objects)
+        left, right = _box_lon(objects, width, height)
+        self.mid = 0.5 * (left + right)
+        box = np.array([o.bbox_pano for o in objects], dtype=np.float64).reshape(n, 4)
+        lat = pixel_to_lonlat(np.stack([np.zeros((n, 2)), box[:, [1, 3]]], -1), width, height)[..., 1]
+        self.target = np.stack([left - self.mid, lat[:, 0], right - self.mid, lat[:, 1]], axis=1)
+        self.size = np.array([o.size for o in objects], dtype=np.float64).reshape(n, 3)
+        self.elevation = np.array([o.elevation for o in objects], dtype=np.float64)
+        self.has = np.array([o.outline is not None for o in objects], dtype=bool)
+        m = max((len(o.outline) for o in objects if o.outline is not None), default=0)
+        # padded by repeating points (min / max are unchanged), only the objects that have one
+        self.outline = np.stack([np.resize(o.outline, (m, 3)) for o in objects if o.outline is not None]) \
+            if m else np.zeros((0, 0, 3))
+
+    def residual(self, xy: FloatArray, yaw: FloatArray, cam_h: FloatArray) -> FloatArray:
+        """Predicted minus detected edge angles, radians: ``xy (..., N, 2)``, ``yaw, cam_h (..., N)`` ->
+        ``(..., N, 4)``."""
+        shape = yaw.shape
+        n = len(self.mid)
+        flat = int(np.prod(shape[:-1], dtype=np.int64))
+        ang = _box_angles(xy.reshape(-1, 2), yaw.reshape(-1), np.tile(self.size, (flat, 1)),
+                          np.tile(self.elevation, flat), cam_h.reshape(-1), np.tile(self.mid, flat)).reshape(*shape, 4)
+        if self.has.any():
+            ang[..., self.has, :] = self._outline_angles(xy[..., self.has, :], yaw[..., self.has],
+                                                         cam_h[..., self.has])
+        return ang - self.target.reshape((1,) * (len(shape) - 1) + (n, 4))
+
+    def _outline_angles(self, xy: FloatArray, yaw: FloatArray, cam_h: FloatArray) -> FloatArray:
+        """:func:`_box_angles` of the outline points, broadcast over leading dimensions: (..., K, 4)."""
+        c, s = np.cos(yaw)[..., None], np.sin(yaw)[..., None]
+        px, py, pz = self.outline[..., 0], self.outline[..., 1], self.outline[..., 2]  # (K, M)
+        rays = np.stack([xy[..., 0:1] + c * px - s * py, xy[..., 1:2] + s * px + c * py,
+                         np.broadcast_to(self.elevation[self.has][:, None] + pz - cam_h[..., None],
+                                         c.shape[:-1] + px.shape[-1:])], axis=-1)
+        lonlat = ray_to_lonlat(rays)
+        rel = _wrap(lonlat[..., 0] - self.mid[self.has][:, None])
+        lat = lonlat[..., 1]
+        return np.stack([rel.min(axis=-1), lat.max(axis=-1), rel.max(axis=-1), lat.min(axis=-1)], axis=-1)
 
 
 def box_scale(objects: Sequence[DetectedObject], width: int, height: int, camera_height: float, ceiling_z: float,
@@ -550,31 +587,16 @@ def fit_boxes(objects: Sequence[DetectedObject], centers: ArrayLike, width: int,
     c = np.asarray(centers, dtype=np.float64).reshape(n, 3).copy()
     if n == 0:
         return c, np.zeros(0)
-    left, right = _box_lon(objs, width, height)
-    mid = 0.5 * (left + right)
-    box = np.array([o.bbox_pano for o in objs])
-    lat = pixel_to_lonlat(np.stack([np.zeros((n, 2)), box[:, [1, 3]]], -1), width, height)[..., 1]
-    target = np.stack([left - mid, lat[:, 0], right - mid, lat[:, 1]], axis=1)
-    size = np.array([o.size for o in objs])
+    edges = _BoxEdges(objs, width, height)
+    size = edges.size
     yaw = np.array([o.yaw for o in objs])
-    elev = np.array([o.elevation for o in objs])
     free_h = camera_height is None
     h = np.broadcast_to(np.asarray(start_height if free_h else camera_height, dtype=np.float64), (n,)).copy()
     p = np.column_stack([c[:, :2], h]) if free_h else c[:, :2].copy()
     k = p.shape[1]
 
-    has = np.array([o.outline is not None for o in objs])
-    if has.any():
-        m = max(len(o.outline) for o in objs if o.outline is not None)
-        outline = np.stack([np.resize(o.outline, (m, 3)) if o.outline is not None else np.zeros((m, 3))
-                            for o in objs])
-
     def resid(q: FloatArray) -> FloatArray:
-        hh = q[:, 2] if free_h else h
-        ang = _box_angles(q[:, :2], yaw, size, elev, hh, mid)
-        if has.any():
-            ang[has] = _outline_angles(q[has, :2], yaw[has], outline[has], elev[has], hh[has], mid[has])
-        return ang - target
+        return edges.residual(q[:, :2], yaw, q[:, 2] if free_h else h)
 
     def cost(r: FloatArray) -> FloatArray:
         return np.sum(r * r, axis=1)
@@ -916,31 +938,13 @@ class _Problem:
         left, right = _box_lon(objects, image_width, image_height)
         self.box_mid = 0.5 * (left + right)
         self.box_half = np.where(right - left < np.pi, 0.5 * (right - left), np.inf)  # no limit for huge boxes
-        if self.n and cfg.box_weight > 0:
-            box = np.array([o.bbox_pano for o in objects])
-            lat = pixel_to_lonlat(np.stack([np.zeros((self.n, 2)), box[:, [1, 3]]], -1), image_width,
-                                  image_height)[..., 1]
-            self.box_target = np.stack([left - self.box_mid, lat[:, 0], right - self.box_mid, lat[:, 1]], axis=1)
-            self.elevation = np.array([o.elevation for o in objects])
-            self.has_outline = np.array([o.outline is not None for o in objects])
-            m = max((len(o.outline) for o in objects if o.outline is not None), default=1)
-            self.outline = np.stack([np.resize(o.outline, (m, 3)) if o.outline is not None else np.zeros((m, 3))
-                                     for o in objects])
+        self.edges = _BoxEdges(objects, image_width, image_height) if self.n and cfg.box_weight > 0 else None
 
     def box_energy(self, lam: FloatArray, xy: FloatArray, yaw: FloatArray) -> FloatArray:
         """``E_b`` (B,): robust misfit of the objects' predicted box edges to their detection boxes."""
-        b, n = len(lam), self.n
-        flat_xy, flat_yaw = xy.reshape(b * n, 2), yaw.reshape(b * n)
-        cam = np.repeat(lam * self.h0, n)
-        mid = np.tile(self.box_mid, b)
-        elev = np.tile(self.elevation, b)
-        ang = _box_angles(flat_xy, flat_yaw, np.tile(self.sizes, (b, 1)), elev, cam, mid)
-        has = np.tile(self.has_outline, b)
-        if has.any():
-            ang[has] = _outline_angles(flat_xy[has], flat_yaw[has], np.tile(self.outline, (b, 1, 1))[has],
-                                       elev[has], cam[has], mid[has])
-        x2 = ((ang - np.tile(self.box_target, (b, 1))) / self.cfg.box_sigma) ** 2
-        return (x2 / (1.0 + x2)).reshape(b, n * 4).sum(axis=1)
+        cam = np.broadcast_to((lam * self.h0)[:, None], yaw.shape)
+        x2 = (self.edges.residual(xy, yaw, cam) / self.cfg.box_sigma) ** 2
+        return (x2 / (1.0 + x2)).sum(axis=(1, 2))
 
     def evaluate(self, lam: FloatArray, xy: FloatArray, yaw: FloatArray) -> _Batch:
         """Energies of hypotheses ``lam (B,)``, ``xy (B, N, 2)``, ``yaw (B, N)``."""
