@@ -109,6 +109,9 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--samples", type=int, default=200, help="N_S, hypotheses of the MAP sampler")
     p.add_argument("--sampler", choices=["improved", "paper"], default="improved",
                    help="the paper's exact sampling scheme or the improved one")
+    p.add_argument("--models", choices=["box", "appearance"], default="box",
+                   help="model of each object: best fit to its box at the shared camera height, or nearest HOG "
+                        "render (the paper)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sampler")
     p.add_argument("--size", type=int, default=1024, help="working width in pixels (larger inputs are downscaled)")
     p.add_argument("--no-objects", action="store_true", help="layout only: no detection, pose or sampling of objects")

@@ -115,7 +115,8 @@ def run(args) -> int:
         out = pred = prepare_out_dir(args.out or "out/eval")
         o = options_from_args(args)
         opts = {"camera_height": o.camera_height, "detector": o.detector, "samples": o.samples, "seed": o.seed,
-                "objects": o.objects, "sampler_mode": o.sampler_mode, "size": args.size}
+                "objects": o.objects, "sampler_mode": o.sampler_mode,
+                "model_choice": o.model_choice, "size": args.size}
         jobs = max(1, min(args.jobs or os.cpu_count() or 1, len(rooms)))
         prog.say(f"eval: running the pipeline on {len(rooms)} rooms of {data} into {out} ({jobs} processes)")
         with prog.stage("run"):

@@ -24,7 +24,8 @@ def options_from_args(args):
     from .pipeline import RunOptions
 
     return RunOptions(camera_height=args.camera_height, detector=args.detector, samples=args.samples,
-                      seed=args.seed, objects=not args.no_objects, sampler_mode=args.sampler)
+                      seed=args.seed, objects=not args.no_objects, sampler_mode=args.sampler,
+                      model_choice=args.models)
 
 
 def write_outputs(result, out: Path, image_name: str) -> dict[str, Path]:

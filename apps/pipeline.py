@@ -14,7 +14,12 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
    metric under an assumed camera height (:mod:`layout.roomgeom`)
 6. object crops -> HOG -> k-NN against the model library's renders -> pose
    CRF by TRW-S -> yaw and model per object (:mod:`posecrf`)
-7. initial objects -> MAP sampling of scale, positions and yaws under E_s,
+7. model choice by box fit (not in the paper, ``RunOptions.model_choice``):
+   each object's model among its class's and its wall-aligned yaw, with the
+   camera height they share, from how well they fit the detection boxes
+   (:func:`layout.modelfit.select_models`; box edges cut by a nearer
+   object or a tile border left out, tile boxes as great-circle edges)
+8. initial objects -> MAP sampling of scale, positions and yaws under E_s,
    E_o and the context prior (:mod:`layout.sampler`)
 
 Everything runs in the upright (rectified) frame; results are reported in
@@ -59,6 +64,10 @@ class RunOptions:
         False: layout only.
     sampler_mode : str
         ``"improved"`` (default) or ``"paper"`` (the paper's exact scheme).
+    model_choice : str
+        ``"box"`` (default): each object's model among its class's by how well it fits its box at the shared
+        camera height, with the HOG distance as appearance cost (:func:`layout.modelfit.select_models`);
+        ``"appearance"``: the model of the nearest HOG render (the paper).
     """
 
     camera_height: float | None = None
@@ -67,6 +76,7 @@ class RunOptions:
     seed: int = 0
     objects: bool = True
     sampler_mode: str = "improved"
+    model_choice: str = "box"
 
 
 @dataclass(frozen=True)
@@ -148,13 +158,14 @@ def _object_mask(dets: list, shape: tuple[int, int]) -> np.ndarray:
     return boxes_mask(np.array([d.box for d in dets]), shape[1])
 
 
-def _outline(model) -> np.ndarray:
-    """Object-frame outline points of a library model (cached per model id and size) for the box fits."""
-    key = (model.id, len(model.vertices), tuple(float(v) for v in model.size))
+def _outline(model, max_points: int = 400) -> np.ndarray:
+    """Object-frame outline points of a library model (cached per model id, size and point budget) for the
+    box fits; the model choice fits every candidate with a lighter outline (``max_points=100``)."""
+    key = (model.id, len(model.vertices), tuple(float(v) for v in model.size), int(max_points))
     if key not in _OUTLINES:
         from layout.sampler import hull_outline
 
-        _OUTLINES[key] = hull_outline(model.vertices)
+        _OUTLINES[key] = hull_outline(model.vertices, max_points=max_points)
     return _OUTLINES[key]
 
 
@@ -163,8 +174,23 @@ _OUTLINES: dict[tuple, np.ndarray] = {}
 _EO_BINS = np.arange(72) * (2.0 * np.pi / 72)
 
 
+def _manhattan(yaw: float) -> float:
+    """The wall-aligned yaw (a multiple of 90 degrees) nearest to ``yaw``, radians."""
+    return round(yaw / (0.5 * math.pi)) * 0.5 * math.pi
+
+
+def _table_at(table: np.ndarray, yaw: float) -> float:
+    """An E_o table over :data:`_EO_BINS` at ``yaw``, interpolated linearly (wraps)."""
+    f = (yaw % (2.0 * math.pi)) / (_EO_BINS[1] - _EO_BINS[0])
+    k = int(math.floor(f))
+    t = f - k
+    return float((1.0 - t) * table[k % len(table)] + t * table[(k + 1) % len(table)])
+
+
 def _poses(upright: np.ndarray, dets: list, prog: Progress) -> list:
-    """Per detection: (model, yaw in the upright frame or None, E_o table over 72 world-yaw bins or None)."""
+    """Per detection: (model, yaw in the upright frame or None, E_o table over 72 world-yaw bins or None,
+    candidates), ``candidates`` a list of (model, E_o of that model at the estimated pose, its E_o table or
+    None) over the class's models, for the model choice by box fit (:func:`layout.modelfit.select_models`)."""
     from posecrf.crops import extract_crop, relative_yaw
     from posecrf.library import builtin_library
     from posecrf.pose import estimate_poses
@@ -200,13 +226,16 @@ def _poses(upright: np.ndarray, dets: list, prog: Progress) -> list:
             model = lib[est.model_id]
             ray = view.direction
             if est.yaw_rel is None:
-                out[i] = (model, None, None)
+                cands = [(lib[m], float(est.e_o_models[k].min()), None) for k, m in enumerate(est.model_ids)]
+                out[i] = (model, None, None, cands)
                 continue
             yaw = float(est.world_yaw(ray))
             # E_o over world-yaw bins (the sampler interpolates): the crop-relative grid seen along this ray.
             rel = relative_yaw(_EO_BINS, ray, model.symmetry)
-            table = np.array([est.e_o_at(float(r), est.pitch, est.model_id) for r in rel])
-            out[i] = (model, yaw, table)
+            cands = [(lib[m], est.e_o_at(float(est.yaw_rel), est.pitch, m),
+                      np.array([est.e_o_at(float(r), est.pitch, m) for r in rel])) for m in est.model_ids]
+            table = cands[est.model_ids.index(est.model_id)][2]
+            out[i] = (model, yaw, table, cands)
     prog.say(f"  poses for {sum(o is not None for o in out)} of {len(dets)} objects")
     return out
 
@@ -226,6 +255,7 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
     PipelineResult
     """
     from layout.likelihood import observe_labels, surface_likelihood
+    from layout.modelfit import occluded_edges, select_models
     from layout.roomgeom import RoomGeometryError, estimate_room_geometry
     from layout.sampler import DetectedObject, PosteriorError, SamplerConfig, map_estimate
     from layout.scene import Scene
@@ -282,20 +312,63 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
         with prog.stage("pose", "object poses (HOG + pose CRF)"):
             poses = _poses(upright, dets, prog)
 
-    objects, eo = [], []
-    for d, p in zip(dets, poses):
+    objects, eo, alternatives = [], [], []
+    models: dict[str, Any] = {}
+    # box edges cut by a nearer object in front are left out of the box fits
+    cut = occluded_edges(np.array([d.box for d in dets]), W) if dets else np.zeros((0, 4), bool)
+    for d, p, c in zip(dets, poses, cut):
         if p is None:
             continue
-        model, yaw, e_o = p
-        objects.append(DetectedObject(d.label, d.box, model.size, 0.0 if yaw is None else yaw, model_id=model.id,
-                                      score=float(d.score), symmetric=yaw is None, outline=_outline(model)))
+        model, yaw, e_o, cands = p
+
+        # a tile detection's edges are great circles (planes through the camera); one at the tile border is not
+        # the object's own edge
+        planes = d.tile.edge_planes() if d.tile is not None else None
+        if d.tile is not None:
+            c = c | d.tile.border_edges()
+
+        def as_object(m, d=d, yaw=yaw, c=c, planes=planes, points=400) -> DetectedObject:
+            return DetectedObject(d.label, d.box, m.size, 0.0 if yaw is None else yaw, model_id=m.id,
+                                  score=float(d.score), symmetric=yaw is None, outline=_outline(m, points),
+                                  edge_weights=np.where(c, 0.0, 1.0), edge_planes=planes)
+
+        objects.append(as_object(model))
         eo.append(e_o)
+        # candidates: every model of the class at the four wall-aligned yaws (and at the pose's own yaw where
+        # that is more than 5 degrees off them): the HOG pose confuses an object with its side view. E_o is
+        # the appearance cost. Fitted with a lighter outline; the chosen one gets the full outline back.
+        yaws = [yaw] if yaw is None else [_manhattan(yaw) + k * 0.5 * math.pi for k in range(4)]
+        if yaw is not None and abs(yaw - _manhattan(yaw)) > math.radians(5.0):
+            yaws.insert(0, yaw)
+        alt, cost, tables = [], [], []
+        for m, c0, t in cands:
+            models[m.id] = m
+            for y in yaws:
+                alt.append(as_object(m, yaw=y, points=100))
+                cost.append(c0 if t is None else _table_at(t, y))
+                tables.append(t)
+        alternatives.append((alt, np.array(cost), tables))
+    shared_height = None
+    if objects and options.model_choice == "box":
+        with prog.stage("models", "model choice by box fit"):
+            choice = select_models([a[0] for a in alternatives], W, H, appearance=[a[1] for a in alternatives],
+                                   camera_height=options.camera_height)
+            changed = 0
+            for k, j in enumerate(choice.index):
+                pick = alternatives[k][0][j]
+                changed += objects[k].model_id != pick.model_id
+                objects[k] = replace(pick, outline=objects[k].outline if objects[k].model_id == pick.model_id
+                                     else _outline(models[pick.model_id]))
+                eo[k] = alternatives[k][2][j]
+            prog.say(f"  {changed} of {len(objects)} models changed; camera height {choice.camera_height:.2f} m")
+            if math.isfinite(choice.camera_height):
+                shared_height = choice.camera_height
 
     with prog.stage("posterior", f"MAP sampling ({options.samples} samples)"):
         if options.sampler_mode == "paper":
             config = SamplerConfig(n_samples=options.samples)
         else:
-            config = replace(SamplerConfig.improved(), n_samples=options.samples)
+            config = replace(SamplerConfig.improved(), n_samples=options.samples, initial_camera_height=shared_height)
         if options.camera_height is not None or not objects:
             wh = geom.ceiling_z  # scale 1: the room is metric under the given (or default) camera height
             config = replace(config, wall_height_range=(wh, wh), initial_wall_height=wh)

@@ -13,8 +13,9 @@ Run::
 2. From the eval run (scene_init.json = the sampler's initial hypothesis, scene.json = its result): camera-height
    error at initialisation and after sampling; per class the share of objects whose retrieved model is the
    true one, and the median position error at initialisation of those with the right and the wrong model;
-   medians with context term (position, orientation, share flipped by more than 90 degrees) and the median
-   wall-height error. Objects are paired with the ground truth by id (gt-boxes runs keep the gt ids).
+   medians with context term (position, orientation, share flipped by more than 90 degrees) and the
+   wall-height error, also the part of it that the scale alone makes (estimated camera height with the true
+   wall-to-camera-height ratio). Objects are paired with the ground truth by id (gt-boxes runs keep the gt ids).
 """
 
 from __future__ import annotations
@@ -66,7 +67,7 @@ def cuboid_vs_outline(data: Path, rooms: int = 60, min_visible: int = 3000) -> d
 
 def run_breakdown(data: Path, run: Path) -> dict:
     """Camera height before / after sampling, model retrieval and position / orientation medians of a run."""
-    cam_init, cam_final, wall = [], [], []
+    cam_init, cam_final, wall, wall_scale = [], [], [], []
     per: dict[str, dict[str, list]] = defaultdict(lambda: defaultdict(list))
     for room in _rooms(data):
         out = run / room.name
@@ -78,8 +79,10 @@ def run_breakdown(data: Path, run: Path) -> dict:
         h = gt["camera_height_m"]
         cam_init.append(init["camera"]["height_m"] / h - 1)
         cam_final.append(final["camera"]["height_m"] / h - 1)
-        wall.append(abs((final["room"]["ceiling_z"] - final["room"]["floor_z"])
-                        - (gt["room"]["ceiling_z"] - gt["room"].get("floor_z", 0.0))))
+        wall_gt = gt["room"]["ceiling_z"] - gt["room"].get("floor_z", 0.0)
+        wall.append(abs((final["room"]["ceiling_z"] - final["room"]["floor_z"]) - wall_gt))
+        # the part of the error that is the scale's: the wall height at the true wall-to-camera-height ratio
+        wall_scale.append(abs(final["camera"]["height_m"] / h - 1) * wall_gt)
         truth = {o["id"]: o for o in gt["objects"]}
         for which, scene in (("init", init), ("final", final)):
             for o in scene["objects"]:
@@ -93,8 +96,11 @@ def run_breakdown(data: Path, run: Path) -> dict:
                     d["right_model"].append(o["model"] == t["model"])
                 elif t.get("symmetry", "none") != "full" and t["class"] != "plant":
                     diff = abs((o["yaw_deg"] - t["yaw_deg"] + 180.0) % 360.0 - 180.0)
+                    if t.get("symmetry") == "two":  # a 2-fold symmetric model looks the same turned by 180 deg
+                        diff = min(diff, 180.0 - diff)
                     d["orient"].append(diff)
-    return {"cam_init": np.array(cam_init), "cam_final": np.array(cam_final), "wall": np.array(wall), "per": per}
+    return {"cam_init": np.array(cam_init), "cam_final": np.array(cam_final), "wall": np.array(wall),
+            "wall_scale": np.array(wall_scale), "per": per}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -118,7 +124,10 @@ def main(argv: list[str] | None = None) -> int:
     ci, cf = br["cam_init"], br["cam_final"]
     lines += ["", f"Camera height of the run ({len(ci)} rooms): median error {np.median(ci):+.1%} at initialisation "
               f"(mean absolute {np.mean(np.abs(ci)):.1%}), {np.median(cf):+.1%} after sampling (mean absolute "
-              f"{np.mean(np.abs(cf)):.1%}); median wall-height error {100 * np.median(br['wall']):.1f} cm.", "",
+              f"{np.mean(np.abs(cf)):.1%}); wall-height error median {100 * np.median(br['wall']):.1f} cm, mean "
+              f"{100 * np.mean(br['wall']):.1f} cm; the scale's part alone (the estimated camera height times the "
+              f"true wall-to-camera-height ratio) mean {100 * np.mean(br['wall_scale']):.1f} cm, the rest is the "
+              "layout's ceiling estimate.", "",
               "| class | right model | position at init, right / wrong model (median cm) | position with context "
               "(median cm) | orientation with context (median deg) | flipped > 90 deg |",
               "|---|---:|---:|---:|---:|---:|"]

@@ -173,6 +173,39 @@ class TileBox:
             raise ValueError(f"box: expected (u0, v0, u1, v1) with u0 < u1 and v0 < v1, got {b.tolist()}")
         object.__setattr__(self, "box", b)
 
+    def edge_planes(self) -> NDArray[np.float64]:
+        """Unit normals of the planes through the camera that hold the box's four edges, pointing into the box.
+
+        The box's region on the sphere is bounded by these great circles (its lon/lat extent, the
+        panorama box, is larger whenever the tile is turned or pitched).
+
+        Returns
+        -------
+        (4, 3) float
+            Left, top, right, bottom; in the panorama frame of ``view``.
+
+        Examples
+        --------
+        >>> from panogeom.perspective import PinholeView
+        >>> view = PinholeView(yaw=0.0, pitch=0.0, roll=0.0, fov=np.pi / 2, width=100, height=100)
+        >>> n = TileBox(view, [25, 25, 75, 75]).edge_planes()
+        >>> bool(np.all(n @ view.pixel_to_ray([50.0, 50.0]) > 0)), np.abs(n[:, 2]).round(3).tolist()
+        (True, [0.0, 0.894, 0.0, 0.894])
+        """
+        u0, v0, u1, v1 = (float(x) for x in self.box)
+        tl, tr, br, bl = self.view.pixel_to_ray(np.array([[u0, v0], [u1, v0], [u1, v1], [u0, v1]]))
+        centre = self.view.pixel_to_ray(np.array([0.5 * (u0 + u1), 0.5 * (v0 + v1)]))
+        n = np.stack([np.cross(bl, tl), np.cross(tl, tr), np.cross(tr, br), np.cross(br, bl)])
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        return n * np.where(n @ centre < 0, -1.0, 1.0)[:, None]
+
+    def border_edges(self, margin: float = 2.0) -> NDArray[np.bool_]:
+        """Which of the box's edges (left, top, right, bottom) lie within ``margin`` pixels of the tile border:
+        there the object may go on beyond the tile, so the edge is not the object's. (4,) bool."""
+        u0, v0, u1, v1 = (float(x) for x in self.box)
+        m = float(margin)
+        return np.array([u0 <= m, v0 <= m, u1 >= self.view.width - m, v1 >= self.view.height - m])
+
 
 @dataclass(frozen=True, eq=False)
 class Detection:

@@ -169,6 +169,21 @@ class DetectedObject:
         these points instead of the ``size`` cuboid: a plant's pot, a
         chair's legs or a TV's stand stand inside the cuboid, so the cuboid
         puts the object's lowest point too near and the camera too high.
+    edge_weights : (4,) float or None
+        Weights of the box's left, top, right and bottom edges in the box
+        fits (:func:`fit_boxes`, the box term): 0 for an edge that is not
+        the object's own, e.g. cut by a nearer object in front
+        (:func:`layout.modelfit.occluded_edges`); None: all 1.
+    edge_planes : (4, 3) float or None
+        Unit normals of the four planes through the camera that bound the
+        detection region (left, top, right, bottom), pointing into it, in
+        the frame of ``bbox_pano``: a box drawn in a perspective tile is
+        bounded by great circles, and the lon/lat extent of that region
+        (``bbox_pano``) is larger than the object's whenever the tile is
+        turned or pitched. Given (with an ``outline``), the box fits measure
+        each edge as ``asin`` of the smallest ``n . ray`` over the outline
+        points (0 where the object touches the edge) instead of comparing
+        the outline's lon/lat extent with ``bbox_pano``.
     """
 
     cls: str
@@ -181,6 +196,8 @@ class DetectedObject:
     elevation: float = 0.0
     symmetric: bool | None = None
     outline: FloatArray | None = field(default=None, repr=False)
+    edge_weights: FloatArray | None = field(default=None, repr=False)
+    edge_planes: FloatArray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.cls, str) or not self.cls:
@@ -203,6 +220,22 @@ class DetectedObject:
                 raise ValueError(f"outline: expected (M, 3) finite points, M >= 4, got shape {np.shape(self.outline)}")
             pts.setflags(write=False)
             object.__setattr__(self, "outline", pts)
+        if self.edge_weights is not None:
+            ew = np.array(self.edge_weights, dtype=np.float64)
+            if ew.shape != (4,) or not np.all(np.isfinite(ew)) or np.any(ew < 0):
+                raise ValueError(f"edge_weights: expected 4 finite weights >= 0 (left, top, right, bottom), "
+                                 f"got {self.edge_weights!r}")
+            ew.setflags(write=False)
+            object.__setattr__(self, "edge_weights", ew)
+        if self.edge_planes is not None:
+            ep = np.array(self.edge_planes, dtype=np.float64)
+            if ep.shape != (4, 3) or not np.all(np.isfinite(ep)) or \
+                    not np.allclose(np.linalg.norm(ep, axis=1), 1.0, atol=1e-6):
+                raise ValueError(f"edge_planes: expected (4, 3) unit normals, got {np.shape(self.edge_planes)}")
+            if self.outline is None:
+                raise ValueError("edge_planes: expected an outline with them (the plane fit needs the model's points)")
+            ep.setflags(write=False)
+            object.__setattr__(self, "edge_planes", ep)
         object.__setattr__(self, "bbox_pano", box)
         object.__setattr__(self, "size", size)
         object.__setattr__(self, "yaw", float(self.yaw))
@@ -448,7 +481,8 @@ class _BoxEdges:
 
     ``target`` (N, 4): box left and right longitudes relative to the box's middle ``mid`` (N,), and the
     latitudes of its top and bottom. :meth:`residual` predicts the same four angles from the outline
-    (:attr:`DetectedObject.outline`) where given, else from the ``size`` cuboid.
+    (:attr:`DetectedObject.outline`) where given, else from the ``size`` cuboid, and weighs them by
+    :attr:`DetectedObject.edge_weights`.
     """
 
     def __init__(self, objects: Sequence[DetectedObject], width: int, height: int) -> None:
@@ -461,14 +495,21 @@ class _BoxEdges:
         self.size = np.array([o.size for o in objects], dtype=np.float64).reshape(n, 3)
         self.elevation = np.array([o.elevation for o in objects], dtype=np.float64)
         self.has = np.array([o.outline is not None for o in objects], dtype=bool)
+        self.weights = np.array([np.ones(4) if o.edge_weights is None else o.edge_weights for o in objects],
+                                dtype=np.float64).reshape(n, 4)
+        # the order of target and residual is (left, top, right, bottom)
         m = max((len(o.outline) for o in objects if o.outline is not None), default=0)
         # padded by repeating points (min / max are unchanged), only the objects that have one
         self.outline = np.stack([np.resize(o.outline, (m, 3)) for o in objects if o.outline is not None]) \
             if m else np.zeros((0, 0, 3))
+        # objects with edge planes (all of them have an outline), as a mask over the outline objects
+        self.planar = np.array([o.edge_planes is not None for o in objects if o.outline is not None], dtype=bool)
+        self.planes = np.stack([o.edge_planes for o in objects if o.edge_planes is not None]) \
+            if self.planar.any() else np.zeros((0, 4, 3))
 
     def residual(self, xy: FloatArray, yaw: FloatArray, cam_h: FloatArray) -> FloatArray:
-        """Predicted minus detected edge angles, radians: ``xy (..., N, 2)``, ``yaw, cam_h (..., N)`` ->
-        ``(..., N, 4)``."""
+        """Predicted minus detected edge angles, radians, times the edge weights: ``xy (..., N, 2)``,
+        ``yaw, cam_h (..., N)`` -> ``(..., N, 4)`` (left, top, right, bottom)."""
         shape = yaw.shape
         n = len(self.mid)
         flat = int(np.prod(shape[:-1], dtype=np.int64))
@@ -477,19 +518,37 @@ class _BoxEdges:
         if self.has.any():
             ang[..., self.has, :] = self._outline_angles(xy[..., self.has, :], yaw[..., self.has],
                                                          cam_h[..., self.has])
-        return ang - self.target.reshape((1,) * (len(shape) - 1) + (n, 4))
+        lead = (1,) * (len(shape) - 1)
+        r = ang - self.target.reshape(lead + (n, 4))
+        if self.planar.any():  # plane edges: the residual is the angle itself (0 at tangency), no target
+            sel = np.flatnonzero(self.has)[self.planar]
+            r[..., sel, :] = self._plane_angles(xy[..., sel, :], yaw[..., sel], cam_h[..., sel])
+        return r * self.weights.reshape(lead + (n, 4))
+
+    def _outline_rays(self, xy: FloatArray, yaw: FloatArray, cam_h: FloatArray,
+                      which: NDArray[np.bool_] | slice = slice(None)) -> FloatArray:
+        """Camera-to-point vectors of the outline points of the outline objects ``which``: (..., K, M, 3)."""
+        c, s = np.cos(yaw)[..., None], np.sin(yaw)[..., None]
+        pts = self.outline[which]
+        px, py, pz = pts[..., 0], pts[..., 1], pts[..., 2]  # (K, M)
+        elev = self.elevation[self.has][which]
+        return np.stack([xy[..., 0:1] + c * px - s * py, xy[..., 1:2] + s * px + c * py,
+                         np.broadcast_to(elev[:, None] + pz - cam_h[..., None], c.shape[:-1] + px.shape[-1:])],
+                        axis=-1)
 
     def _outline_angles(self, xy: FloatArray, yaw: FloatArray, cam_h: FloatArray) -> FloatArray:
         """:func:`_box_angles` of the outline points, broadcast over leading dimensions: (..., K, 4)."""
-        c, s = np.cos(yaw)[..., None], np.sin(yaw)[..., None]
-        px, py, pz = self.outline[..., 0], self.outline[..., 1], self.outline[..., 2]  # (K, M)
-        rays = np.stack([xy[..., 0:1] + c * px - s * py, xy[..., 1:2] + s * px + c * py,
-                         np.broadcast_to(self.elevation[self.has][:, None] + pz - cam_h[..., None],
-                                         c.shape[:-1] + px.shape[-1:])], axis=-1)
-        lonlat = ray_to_lonlat(rays)
+        lonlat = ray_to_lonlat(self._outline_rays(xy, yaw, cam_h))
         rel = _wrap(lonlat[..., 0] - self.mid[self.has][:, None])
         lat = lonlat[..., 1]
         return np.stack([rel.min(axis=-1), lat.max(axis=-1), rel.max(axis=-1), lat.min(axis=-1)], axis=-1)
+
+    def _plane_angles(self, xy: FloatArray, yaw: FloatArray, cam_h: FloatArray) -> FloatArray:
+        """Per edge plane, asin of the smallest ``n . ray / |ray|`` over the outline points: (..., P, 4)."""
+        rays = self._outline_rays(xy, yaw, cam_h, self.planar)  # (..., P, M, 3)
+        unit = rays / np.maximum(np.linalg.norm(rays, axis=-1, keepdims=True), 1e-12)
+        dots = np.einsum("...pmk,pek->...pme", unit, self.planes)
+        return np.arcsin(np.clip(dots.min(axis=-2), -1.0, 1.0))
 
 
 def box_scale(objects: Sequence[DetectedObject], width: int, height: int, camera_height: float, ceiling_z: float,
@@ -549,7 +608,7 @@ def _box_angles(xy: FloatArray, yaw: FloatArray, size: FloatArray, elevation: Fl
 
 def fit_boxes(objects: Sequence[DetectedObject], centers: ArrayLike, width: int, height: int,
               camera_height: float | None = None,
-              start_height: ArrayLike = 1.6) -> tuple[FloatArray, FloatArray]:
+              start_height: ArrayLike = 1.6, iterations: int = 30) -> tuple[FloatArray, FloatArray]:
     """Least-squares fit of the objects' floor positions to all four edges of their boxes.
 
     The width of a box alone fixes an object's distance badly when it is
@@ -568,6 +627,8 @@ def fit_boxes(objects: Sequence[DetectedObject], centers: ArrayLike, width: int,
         Known camera height; None: fit one per object as well (3 unknowns,
         4 equations), starting from ``start_height``.
     start_height : float or (N,) float
+    iterations : int
+        Levenberg-Marquardt steps (fewer suffice from a close start).
 
     Returns
     -------
@@ -608,7 +669,7 @@ def fit_boxes(objects: Sequence[DetectedObject], centers: ArrayLike, width: int,
 
     r0 = resid(p)
     damp = np.full(n, 1e-3)
-    for _ in range(30):
+    for _ in range(int(iterations)):
         jac = np.empty((n, 4, k))
         for i in range(k):
             dq = np.zeros_like(p)
@@ -754,6 +815,19 @@ class SamplerConfig:
         outline or cuboid at the hypothesis' camera height. It ties each
         object to its detection box, robustly (a box cut by an occluder
         costs at most 1 per edge).
+    flip_moves : bool
+        Improved mode: the first proposal of every epoch for each object
+        without rotational symmetry turns it by 180 degrees in place (not in
+        the paper). The yaw proposals (0.32 rad) never reach the other
+        side, and the HOG pose confuses front and back of beds, TVs and
+        chairs; the flip lets the context prior (backs to walls) and E_o
+        decide.
+    initial_camera_height : float or None
+        Used when ``initial_wall_height`` is None: the camera height of the
+        initial hypothesis, metres (e.g. the shared height of
+        :func:`layout.modelfit.select_models`), clipped to the wall-height
+        range, with the positions fitted to the boxes at it; None: the
+        median of the per-object fits (:func:`box_scale`).
     """
 
     mode: SamplerMode = "paper"
@@ -779,6 +853,8 @@ class SamplerConfig:
     sample_scale: bool = True
     box_weight: float = 0.0
     box_sigma: float = math.radians(1.0)
+    flip_moves: bool = False
+    initial_camera_height: float | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in ("paper", "improved"):
@@ -792,6 +868,9 @@ class SamplerConfig:
         lo, hi = (float(v) for v in self.wall_height_range)
         if not 0 < lo <= hi:
             raise ValueError(f"wall_height_range: expected 0 < low <= high metres, got {self.wall_height_range!r}")
+        ich = self.initial_camera_height
+        if ich is not None and not (math.isfinite(float(ich)) and float(ich) > 0):
+            raise ValueError(f"initial_camera_height: expected metres > 0 or None, got {ich!r}")
         if self.initial_wall_height is not None and not lo <= self.initial_wall_height <= hi:
             raise ValueError(f"initial_wall_height: expected a value in {self.wall_height_range} or None, "
                              f"got {self.initial_wall_height!r}")
@@ -814,10 +893,10 @@ class SamplerConfig:
     @classmethod
     def improved(cls, **overrides: object) -> "SamplerConfig":
         """The improved scheme (module docstring): scale fitted to the boxes and kept (``sample_scale=False``),
-        coordinate-wise annealed moves, ``surface_weight=100``, ``keep_in_box=True``; ``overrides`` replace
+        coordinate-wise annealed moves with flips, ``surface_weight=100``, ``keep_in_box=True``; ``overrides`` replace
         any of these."""
         opts: dict[str, object] = {"mode": "improved", "initial_wall_height": None, "surface_weight": 100.0,
-                                   "keep_in_box": True, "sample_scale": False}
+                                   "keep_in_box": True, "sample_scale": False, "flip_moves": True}
         opts.update(overrides)
         return cls(**opts)  # type: ignore[arg-type]
 
@@ -1194,6 +1273,10 @@ def map_estimate(likelihood: SurfaceLikelihood, objects: Sequence[DetectedObject
     xy = init.centers[:, :2].copy()
     if cfg.initial_wall_height is not None:
         lam0 = cfg.initial_wall_height / prob.ceiling
+    elif cfg.initial_camera_height is not None and n:
+        lo_h, hi_h = (float(v) for v in cfg.wall_height_range)
+        lam0 = float(np.clip(float(cfg.initial_camera_height) / prob.h0, lo_h / prob.ceiling, hi_h / prob.ceiling))
+        xy = fit_boxes(objs, init.centers, image_width, image_height, camera_height=lam0 * prob.h0)[0][:, :2]
     else:
         lam0, centers = box_scale(objs, image_width, image_height, prob.h0, prob.ceiling, cfg.wall_height_range,
                                   init=init)
@@ -1308,6 +1391,10 @@ def _improved_epoch(prob: _Problem, st: _State, shrink: float, g: np.random.Gene
     xy_s[jj, :, jj] += (g.normal(size=(n, s, 1)) * sd_a[:, None, None] * along[:, None, :]
                         + g.normal(size=(n, s, 1)) * sd_c[:, None, None] * across[:, None, :])
     yaw_s[jj, :, jj] += g.normal(0.0, math.sqrt(cfg.yaw_variance) * shrink, size=(n, s))
+    if cfg.flip_moves:  # proposal 0 of each asymmetric object: turned by 180 degrees in place
+        f = jj[prob.weights > 0]
+        xy_s[f, 0, f] = st.xy[f]
+        yaw_s[f, 0, f] = st.yaw[f] + np.pi
     res = prob.evaluate(np.full(n * s, st.lam), xy_s.reshape(n * s, n, 2), yaw_s.reshape(n * s, n))
     evaluated += n * s
     invalid += int(np.count_nonzero(res.violation > 0))

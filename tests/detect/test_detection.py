@@ -88,3 +88,26 @@ def test_protocols_are_structural():
     assert isinstance(One(), Detector) and not isinstance(One(), BatchDetector)
     assert isinstance(Many(), BatchDetector)
     assert isinstance(Pano(), PanoramaDetector) and not isinstance(Pano(), Detector)
+
+
+def test_tile_box_edge_planes_bound_the_box_on_the_sphere():
+    """The four planes hold the box's edges (its corner rays lie on two of them), every ray through a pixel inside
+    the box is on their inner side, and one outside is not; also for a turned, pitched and rolled tile."""
+    from detect.detection import TileBox
+    from panogeom.perspective import PinholeView
+
+    view = PinholeView(yaw=0.7, pitch=-0.4, roll=0.1, fov=np.pi / 2, width=320, height=240)
+    tb = TileBox(view, [40.0, 30.0, 200.0, 180.0])
+    n = tb.edge_planes()
+    assert n.shape == (4, 3) and np.allclose(np.linalg.norm(n, axis=1), 1.0)
+    corners = view.pixel_to_ray(np.array([[40.0, 30.0], [200.0, 30.0], [200.0, 180.0], [40.0, 180.0]]))
+    d = corners @ n.T  # (corner, plane): TL on left and top, TR on top and right, ...
+    on = np.array([[1, 1, 0, 0], [0, 1, 1, 0], [0, 0, 1, 1], [1, 0, 0, 1]], bool)
+    assert np.allclose(d[on], 0.0, atol=1e-9) and np.all(d[~on] > 0)
+    rng = np.random.default_rng(0)
+    inside = view.pixel_to_ray(rng.uniform([41, 31], [199, 179], size=(200, 2)))
+    assert np.all(inside @ n.T > 0)
+    outside = view.pixel_to_ray(np.array([[20.0, 100.0], [120.0, 200.0], [250.0, 100.0], [120.0, 10.0]]))
+    assert np.all(np.any(outside @ n.T < 0, axis=1))
+    assert tb.border_edges().tolist() == [False] * 4
+    assert TileBox(view, [0.5, 30.0, 200.0, 239.0]).border_edges().tolist() == [True, False, False, True]

@@ -1,0 +1,167 @@
+"""Tests of layout.modelfit: model retrieval by box fit at a shared camera height."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from layout.modelfit import occluded_edges, select_models
+from layout.sampler import DetectedObject
+from panogeom.project import world_box_to_pano
+
+W, H = 1024, 512
+
+# Per class: candidate sizes (l, w, h), several of nearly the same proportions (a box alone cannot tell them apart).
+LIBRARY = {
+    "bed": [(1.9, 0.95, 0.5), (2.05, 1.4, 0.55), (2.15, 1.65, 0.6), (2.25, 2.0, 0.65)],
+    "chair": [(0.45, 0.45, 0.8), (0.55, 0.55, 0.95), (0.65, 0.7, 1.1)],
+    "tv": [(0.2, 0.8, 0.5), (0.25, 1.1, 0.7), (0.3, 1.4, 0.85)],
+}
+
+
+def scene(seed: int, cam: float):
+    """Objects of random true models at random places, their true boxes, and every candidate per object."""
+    rng = np.random.default_rng(seed)
+    truth, cands = [], []
+    for k, cls in enumerate(["bed", "chair", "chair", "tv"]):
+        j = int(rng.integers(len(LIBRARY[cls])))
+        size = np.array(LIBRARY[cls][j])
+        d, az, yaw = rng.uniform(2.0, 4.0), k * math.pi / 2 + rng.uniform(-0.4, 0.4), rng.uniform(0, 2 * math.pi)
+        center = np.array([d * math.cos(az), d * math.sin(az), size[2] / 2])
+        box = world_box_to_pano(center, size, yaw, W, H, camera_height=cam).extent
+        truth.append(j)
+        cands.append([DetectedObject(cls, box, s, yaw, model_id=f"{cls}-{i}") for i, s in enumerate(LIBRARY[cls])])
+    return truth, cands
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_true_models_and_camera_height_from_true_boxes(seed):
+    cam = 1.3 + 0.1 * seed
+    truth, cands = scene(seed, cam)
+    res = select_models(cands, W, H)
+    assert res.index.tolist() == truth
+    assert abs(res.camera_height - cam) < 0.02 * cam
+    assert [o.model_id for o in res.objects] == [c[j].model_id for c, j in zip(cands, truth)]
+    assert res.cost.shape == (4, 4) and np.isinf(res.cost[1, 3])  # chairs have 3 candidates
+    assert np.all(np.diff(res.heights) > 0) and res.profile.shape == res.heights.shape
+
+
+def test_a_known_camera_height_and_an_appearance_cost():
+    truth, cands = scene(0, 1.5)
+    known = select_models(cands, W, H, camera_height=1.5)
+    assert known.index.tolist() == truth and known.camera_height == 1.5 and len(known.heights) == 1
+    # a strong appearance cost against the true bed model overrides the box
+    app = [np.zeros(len(c)) for c in cands]
+    app[0][truth[0]] = 100.0
+    res = select_models(cands, W, H, camera_height=1.5, appearance=app)
+    assert res.index[0] != truth[0] and res.index[1:].tolist() == truth[1:]
+    # ... and a weight of zero ignores it
+    assert select_models(cands, W, H, camera_height=1.5, appearance=app,
+                         appearance_weight=0.0).index.tolist() == truth
+
+
+def test_one_box_cut_by_an_occluder_does_not_move_the_camera_height():
+    truth, cands = scene(3, 1.6)
+    box = cands[1][0].bbox_pano.copy()
+    box[3] -= 0.4 * (box[3] - box[1])  # the lower 40 % of the first chair hidden behind the bed
+    cands[1] = [DetectedObject(o.cls, box, o.size, o.yaw, model_id=o.model_id) for o in cands[1]]
+    res = select_models(cands, W, H)
+    assert abs(res.camera_height - 1.6) < 0.03
+    assert [res.index[i] for i in (0, 2, 3)] == [truth[i] for i in (0, 2, 3)]
+
+
+def test_input_errors():
+    _, cands = scene(0, 1.5)
+    with pytest.raises(ValueError, match=r"candidates\[1\]: expected at least one"):
+        select_models([cands[0], []], W, H)
+    other = DetectedObject("chair", [10.0, 260.0, 40.0, 300.0], (0.5, 0.5, 0.9), 0.0)
+    with pytest.raises(ValueError, match=r"share its box"):
+        select_models([cands[1] + [other]], W, H)
+    with pytest.raises(ValueError, match=r"appearance\[0\]: expected 4 finite costs"):
+        select_models(cands, W, H, appearance=[np.zeros(3)] + [np.zeros(len(c)) for c in cands[1:]])
+    with pytest.raises(ValueError, match="camera_height: expected metres > 0"):
+        select_models(cands, W, H, camera_height=-1.0)
+    with pytest.raises(ValueError, match="height_range"):
+        select_models(cands, W, H, height_range=(2.0, 1.0))
+    empty = select_models([], W, H)
+    assert empty.objects == () and math.isnan(empty.camera_height)
+
+
+def test_occluded_edges_nearer_box_in_front_and_across_the_seam():
+    # a chair (bottom at 340) in front of the right part of a bed (bottom at 300): the bed's right and bottom edges
+    boxes = [[100, 200, 200, 300], [150, 250, 260, 340], [600, 100, 640, 420]]
+    cut = occluded_edges(boxes, 1024)
+    assert cut.tolist() == [[False, False, True, True], [False] * 4, [False] * 4]
+    # the same two boxes shifted across the seam (u0 > u1 wraps)
+    shifted = [[(u0 + 900) % 1024, v0, (u1 + 900) % 1024, v1] for u0, v0, u1, v1 in boxes]
+    assert occluded_edges(shifted, 1024).tolist() == cut.tolist()
+    # a tall nearer box covering the whole of a small far one takes all four edges
+    assert occluded_edges([[300, 280, 320, 300], [280, 150, 340, 330]], 1024)[0].all()
+    assert occluded_edges([[1, 2, 3, 4]], 1024).shape == (1, 4)
+
+
+def test_edge_weights_leave_a_cut_edge_out_of_the_fit():
+    from layout.sampler import fit_boxes
+
+    truth, cands = scene(1, 1.5)
+    bed = cands[0][truth[0]]
+    box = bed.bbox_pano.copy()
+    box[3] -= 0.3 * (box[3] - box[1])  # bottom cut by an occluder
+    cut = DetectedObject("bed", box, bed.size, bed.yaw)
+    told = DetectedObject("bed", box, bed.size, bed.yaw, edge_weights=[1, 1, 1, 0])
+    start = np.array([[2.0, 0.0, 0.3]])
+    true_xy = fit_boxes([bed], start, W, H, camera_height=1.5)[0][0, :2]
+    err_cut = np.hypot(*(fit_boxes([cut], start, W, H, camera_height=1.5)[0][0, :2] - true_xy))
+    err_told = np.hypot(*(fit_boxes([told], start, W, H, camera_height=1.5)[0][0, :2] - true_xy))
+    assert err_told < 0.02 and err_cut > 0.1
+    with pytest.raises(ValueError, match="edge_weights: expected 4 finite weights"):
+        DetectedObject("bed", box, bed.size, bed.yaw, edge_weights=[1, 1, 1])
+
+
+def test_the_height_prior_decides_where_the_boxes_cannot():
+    """One bed whose candidates are scaled copies of each other: each fits the box exactly at its own camera
+    height, so only the prior (median 1.5 m) can choose; the default prior picks the bed seen at 1.5 m."""
+    box = world_box_to_pano(np.array([3.0, 0.0, 0.3]), np.array([2.0, 1.6, 0.6]), math.pi, W, H,
+                            camera_height=1.5).extent
+    beds = [DetectedObject("bed", box, [s, 0.8 * s, 0.3 * s], math.pi) for s in (1.6, 2.0, 2.4)]
+    res = select_models([beds], W, H)
+    assert res.index.tolist() == [1] and abs(res.camera_height - 1.5) < 0.01
+    free = select_models([beds], W, H, height_prior=None)  # some candidate at its own height: 1.2, 1.5 or 1.8 m
+    assert abs(free.camera_height / (1.5 * (0.8, 1.0, 1.2)[free.index[0]]) - 1) < 0.02
+    assert free.cost[0, free.index[0]] < 0.05
+    with pytest.raises(ValueError, match="height_prior"):
+        select_models([beds], W, H, height_prior=(0.0, 0.3))
+
+
+def test_edge_planes_of_a_tight_tile_box_are_touched_at_the_truth():
+    """A box drawn tight around an object in a pitched, turned tile: as great circles its edges touch the outline
+    at the true position (residual ~0), and the fit from a wrong start comes back to it."""
+    from detect.detection import TileBox
+    from layout.sampler import _BoxEdges, fit_boxes, hull_outline
+    from panogeom.coords import ray_to_lonlat, lonlat_to_pixel
+    from panogeom.perspective import PinholeView
+
+    size, yaw, cam = np.array([2.0, 1.6, 0.6]), 2.0, 1.5
+    center = np.array([2.2, 1.4, 0.3])
+    verts = np.array([[sx * size[0] / 2, sy * size[1] / 2, z] for sx in (-1, 1) for sy in (-1, 1)
+                      for z in (0.0, size[2])])
+    outline = hull_outline(verts)
+    c, s = math.cos(yaw), math.sin(yaw)
+    world = np.stack([center[0] + c * outline[:, 0] - s * outline[:, 1],
+                      center[1] + s * outline[:, 0] + c * outline[:, 1], outline[:, 2] - cam], axis=1)
+    lon_c = float(ray_to_lonlat(center[None] - [0, 0, cam])[0, 0])
+    view = PinholeView(yaw=lon_c + 0.35, pitch=-0.45, roll=0.0, fov=math.radians(100), width=400, height=400)
+    px, ok = view.ray_to_pixel(world)
+    assert ok.all()
+    tb = TileBox(view, [px[:, 0].min(), px[:, 1].min(), px[:, 0].max(), px[:, 1].max()])
+    pano_box = lonlat_to_pixel(ray_to_lonlat(world), W, H)
+    box = [pano_box[:, 0].min(), pano_box[:, 1].min(), pano_box[:, 0].max(), pano_box[:, 1].max()]
+    obj = DetectedObject("bed", box, size, yaw, outline=outline, edge_planes=tb.edge_planes())
+    r = _BoxEdges([obj], W, H).residual(center[None, None, :2], np.array([[yaw]]), np.array([[cam]]))[0, 0]
+    assert np.abs(r).max() < 1e-6
+    got = fit_boxes([obj], [[center[0] + 0.4, center[1] - 0.3, 0.3]], W, H, camera_height=cam)[0][0, :2]
+    assert np.hypot(*(got - center[:2])) < 0.01
+    with pytest.raises(ValueError, match="edge_planes: expected an outline"):
+        DetectedObject("bed", box, size, yaw, edge_planes=tb.edge_planes())
