@@ -180,3 +180,26 @@ def test_model_choice_by_box_fit_recovers_the_camera_height(tmp_path, room_png):
         heights[mode] = scene["camera"]["height_m"]
         assert ("models" in scene["timing_s"]) == (mode == "box")
     assert abs(heights["box"] / gt["camera_height_m"] - 1) < 0.03
+
+
+def test_ceiling_estimate_follows_the_object_mask(room_png, monkeypatch):
+    """With detections masked the room step takes the median wall-to-camera ratio; without objects the lowest
+    well-supported mode (the labeller's furniture-as-floor guard) stays."""
+    import layout.roomgeom
+    from apps.imageio import read_panorama
+    from apps.pipeline import RunOptions, run_pipeline
+
+    seen = []
+    real = layout.roomgeom.estimate_room_geometry
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs.get("ceiling_estimate", "lowest_mode"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(layout.roomgeom, "estimate_room_geometry", spy)
+    pano = read_panorama(room_png / "pano.png", max_width=512).image
+    run_pipeline(pano, RunOptions(detector=f"annotations:{room_png / 'gt.json'}", samples=50))
+    assert seen[0] == "median"
+    seen.clear()
+    run_pipeline(pano, RunOptions(objects=False, samples=50))
+    assert seen == ["lowest_mode"]
