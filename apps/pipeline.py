@@ -174,24 +174,19 @@ _OUTLINES: dict[tuple, np.ndarray] = {}
 _EO_BINS = np.arange(72) * (2.0 * np.pi / 72)
 
 
-def _manhattan(yaw: float) -> float:
-    """The wall-aligned yaw (a multiple of 90 degrees) nearest to ``yaw``, radians."""
-    return round(yaw / (0.5 * math.pi)) * 0.5 * math.pi
+def _eo_at(est, ray: np.ndarray, model, world_yaws: np.ndarray) -> np.ndarray:
+    """E_o of ``model`` for the pose estimate ``est`` seen along ``ray``, at world yaws (radians): (K,)."""
+    from posecrf.crops import relative_yaw
 
-
-def _table_at(table: np.ndarray, yaw: float) -> float:
-    """An E_o table over :data:`_EO_BINS` at ``yaw``, interpolated linearly (wraps)."""
-    f = (yaw % (2.0 * math.pi)) / (_EO_BINS[1] - _EO_BINS[0])
-    k = int(math.floor(f))
-    t = f - k
-    return float((1.0 - t) * table[k % len(table)] + t * table[(k + 1) % len(table)])
+    # a fully symmetric model looks the same at every yaw: any relative yaw reads its E_o
+    rel = relative_yaw(world_yaws, ray, "none" if model.symmetry == "full" else model.symmetry)
+    return np.array([est.e_o_at(float(r), est.pitch, model.id) for r in np.atleast_1d(rel)])
 
 
 def _poses(upright: np.ndarray, dets: list, prog: Progress) -> list:
     """Per detection: (model, yaw in the upright frame or None, E_o table over 72 world-yaw bins or None,
-    candidates), ``candidates`` a list of (model, E_o of that model at the estimated pose, its E_o table or
-    None) over the class's models, for the model choice by box fit (:func:`layout.modelfit.select_models`)."""
-    from posecrf.crops import extract_crop, relative_yaw
+    the pose estimate, the crop's ray), or None without a pose."""
+    from posecrf.crops import extract_crop
     from posecrf.library import builtin_library
     from posecrf.pose import estimate_poses
     from posecrf.render import PoseGrid, RenderSettings
@@ -226,16 +221,10 @@ def _poses(upright: np.ndarray, dets: list, prog: Progress) -> list:
             model = lib[est.model_id]
             ray = view.direction
             if est.yaw_rel is None:
-                cands = [(lib[m], float(est.e_o_models[k].min()), None) for k, m in enumerate(est.model_ids)]
-                out[i] = (model, None, None, cands)
+                out[i] = (model, None, None, est, ray)
                 continue
-            yaw = float(est.world_yaw(ray))
             # E_o over world-yaw bins (the sampler interpolates): the crop-relative grid seen along this ray.
-            rel = relative_yaw(_EO_BINS, ray, model.symmetry)
-            cands = [(lib[m], est.e_o_at(float(est.yaw_rel), est.pitch, m),
-                      np.array([est.e_o_at(float(r), est.pitch, m) for r in rel])) for m in est.model_ids]
-            table = cands[est.model_ids.index(est.model_id)][2]
-            out[i] = (model, yaw, table, cands)
+            out[i] = (model, float(est.world_yaw(ray)), _eo_at(est, ray, model, _EO_BINS), est, ray)
     prog.say(f"  poses for {sum(o is not None for o in out)} of {len(dets)} objects")
     return out
 
@@ -255,7 +244,8 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
     PipelineResult
     """
     from layout.likelihood import observe_labels, surface_likelihood
-    from layout.modelfit import occluded_edges, select_models
+    from layout.modelfit import candidate_yaws, occluded_edges, select_models
+    from posecrf.library import builtin_library
     from layout.roomgeom import RoomGeometryError, estimate_room_geometry
     from layout.sampler import DetectedObject, PosteriorError, SamplerConfig, map_estimate
     from layout.scene import Scene
@@ -317,14 +307,14 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
         with prog.stage("pose", "object poses (HOG + pose CRF)"):
             poses = _poses(upright, dets, prog)
 
+    lib = builtin_library()
     objects, eo, alternatives = [], [], []
-    models: dict[str, Any] = {}
     # box edges cut by a nearer object in front are left out of the box fits
     cut = occluded_edges(np.array([d.box for d in dets]), W) if dets else np.zeros((0, 4), bool)
     for d, p, c in zip(dets, poses, cut):
         if p is None:
             continue
-        model, yaw, e_o, cands = p
+        model, yaw, e_o, est, ray = p
 
         # a tile detection's edges are great circles (planes through the camera); one at the tile border is not
         # the object's own edge
@@ -339,20 +329,20 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
 
         objects.append(as_object(model))
         eo.append(e_o)
-        # candidates: every model of the class at the four wall-aligned yaws (and at the pose's own yaw where
-        # that is more than 5 degrees off them): the HOG pose confuses an object with its side view. E_o is
-        # the appearance cost. Fitted with a lighter outline; the chosen one gets the full outline back.
-        yaws = [yaw] if yaw is None else [_manhattan(yaw) + k * 0.5 * math.pi for k in range(4)]
-        if yaw is not None and abs(yaw - _manhattan(yaw)) > math.radians(5.0):
-            yaws.insert(0, yaw)
-        alt, cost, tables = [], [], []
-        for m, c0, t in cands:
-            models[m.id] = m
-            for y in yaws:
+        if options.model_choice != "box":
+            continue
+        # candidates: every model of the class at the yaws of layout.modelfit.candidate_yaws, E_o of each as its
+        # appearance cost (a fully symmetric model: its best E_o over the poses); fitted with a lighter outline
+        yaws = [yaw] if yaw is None else candidate_yaws(yaw)
+        alt, cost, lib_models = [], [], []
+        for k, mid in enumerate(est.model_ids):
+            m = lib[mid]
+            costs = [float(est.e_o_models[k].min())] if yaw is None else _eo_at(est, ray, m, np.array(yaws))
+            for y, e in zip(yaws, costs):
                 alt.append(as_object(m, yaw=y, points=100))
-                cost.append(c0 if t is None else _table_at(t, y))
-                tables.append(t)
-        alternatives.append((alt, np.array(cost), tables))
+                cost.append(e)
+                lib_models.append(m)
+        alternatives.append((alt, np.array(cost), lib_models, est, ray))
     shared_height = None
     if objects and options.model_choice == "box":
         with prog.stage("models", "model choice by box fit"):
@@ -360,11 +350,13 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
                                    camera_height=options.camera_height)
             changed = 0
             for k, j in enumerate(choice.index):
-                pick = alternatives[k][0][j]
-                changed += objects[k].model_id != pick.model_id
-                objects[k] = replace(pick, outline=objects[k].outline if objects[k].model_id == pick.model_id
-                                     else _outline(models[pick.model_id]))
-                eo[k] = alternatives[k][2][j]
+                alt, _, lib_models, est, ray = alternatives[k]
+                pick, m = alt[j], lib_models[j]
+                if objects[k].model_id != pick.model_id:
+                    changed += 1
+                    if eo[k] is not None:
+                        eo[k] = _eo_at(est, ray, m, _EO_BINS)
+                objects[k] = replace(pick, outline=_outline(m))
             prog.say(f"  {changed} of {len(objects)} models changed; camera height {choice.camera_height:.2f} m")
             if math.isfinite(choice.camera_height):
                 shared_height = choice.camera_height

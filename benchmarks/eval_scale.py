@@ -69,7 +69,7 @@ def cuboid_vs_outline(data: Path, rooms: int = 60, min_visible: int = 3000) -> d
 
 def run_breakdown(data: Path, run: Path) -> dict:
     """Camera height before / after sampling, model retrieval and position / orientation medians of a run."""
-    cam_init, cam_final, wall, wall_scale = [], [], [], []
+    cam_init, cam_final, wall, wall_scale, names, ratio = [], [], [], [], [], []
     per: dict[str, dict[str, list]] = defaultdict(lambda: defaultdict(list))
     for room in _rooms(data):
         out = run / room.name
@@ -85,6 +85,10 @@ def run_breakdown(data: Path, run: Path) -> dict:
         wall.append(abs((final["room"]["ceiling_z"] - final["room"]["floor_z"]) - wall_gt))
         # the part of the error that is the scale's: the wall height at the true wall-to-camera-height ratio
         wall_scale.append(abs(final["camera"]["height_m"] / h - 1) * wall_gt)
+        names.append(room.name)
+        # error of the layout's wall-to-camera-height ratio (the scale does not change it), camera heights
+        ratio.append((final["room"]["ceiling_z"] - final["room"]["floor_z"]) / final["camera"]["height_m"]
+                     - wall_gt / h)
         truth = {o["id"]: o for o in gt["objects"]}
         for which, scene in (("init", init), ("final", final)):
             for o in scene["objects"]:
@@ -102,7 +106,7 @@ def run_breakdown(data: Path, run: Path) -> dict:
                         diff = min(diff, 180.0 - diff)
                     d["orient"].append(diff)
     return {"cam_init": np.array(cam_init), "cam_final": np.array(cam_final), "wall": np.array(wall),
-            "wall_scale": np.array(wall_scale), "per": per}
+            "wall_scale": np.array(wall_scale), "names": names, "ratio": np.array(ratio), "per": per}
 
 
 def ceiling_estimates(data: Path, run: Path) -> dict[str, float]:
@@ -157,6 +161,9 @@ def main(argv: list[str] | None = None) -> int:
               f"{100 * np.mean(br['wall']):.1f} cm; the scale's part alone (the estimated camera height times the "
               f"true wall-to-camera-height ratio) mean {100 * np.mean(br['wall_scale']):.1f} cm, the rest is the "
               "layout's ceiling estimate.", "",
+              "Rooms with the largest wall-height errors: " + "; ".join(
+                  f"{br['names'][i]} {100 * br['wall'][i]:.0f} cm (camera height {br['cam_final'][i]:+.1%}, "
+                  f"wall-to-camera ratio {br['ratio'][i]:+.2f})" for i in np.argsort(-br["wall"])[:5]) + ".", "",
               "Ceiling of the run's labels with the gt boxes masked, mean absolute error in camera heights: "
               + ", ".join(f"{m.replace('_', ' ')} {e:.4f}" for m, e in ceiling_estimates(args.data, args.run).items())
               + " (the pipeline uses the median ratio when objects are masked).", "",

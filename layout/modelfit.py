@@ -46,9 +46,11 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .sampler import DetectedObject, _BoxEdges, fit_boxes, initialise_objects
+from panogeom.coords import pixel_to_lonlat
 
-__all__ = ["ModelChoice", "select_models", "occluded_edges", "DEFAULT_EDGE_SIGMA", "DEFAULT_APPEARANCE_WEIGHT",
+from .sampler import DetectedObject, _BoxEdges, _fit_edges, initialise_objects
+
+__all__ = ["ModelChoice", "select_models", "candidate_yaws", "occluded_edges", "DEFAULT_EDGE_SIGMA", "DEFAULT_APPEARANCE_WEIGHT",
            "DEFAULT_HEIGHT_PRIOR"]
 
 FloatArray = NDArray[np.float64]
@@ -56,9 +58,8 @@ FloatArray = NDArray[np.float64]
 #: Scale of the box-edge misfit, radians (about 1.7 px at 1024 px width).
 DEFAULT_EDGE_SIGMA: float = math.radians(0.6)
 #: Prior on the camera height (``select_models(height_prior=...)``): log-normal, median 1.5 m, sigma 0.3 (about
-#: 0.8-2.7 m at two sigma). Measured on the tuning set (seed 7000, 30 rooms): with the builtin detector's boxes it
-#: took the mean wall-height error from 25.7 to 21.0 cm (sigma 0.2: 20.6); with ground-truth boxes, where the boxes
-#: decide alone, it moved one room the wrong way (9.0 -> 9.9 cm).
+#: 0.8-2.7 m at two sigma). Chosen on a tuning set (seed 7000) during development with a temporary switch: it
+#: helped with the builtin detector's boxes and cost one room with ground-truth boxes (session-3 note of issue 10).
 DEFAULT_HEIGHT_PRIOR: tuple[float, float] | None = (1.5, 0.3)
 _FINE = 9  # points of each finer grid of heights
 _KEEP = 8  # candidates per object fitted on the finer grids
@@ -97,6 +98,28 @@ class ModelChoice:
     cost: FloatArray
     heights: FloatArray
     profile: FloatArray
+
+
+def candidate_yaws(yaw: float, keep_within_deg: float = 5.0) -> list[float]:
+    """The yaws the model choice tries for a pose estimate ``yaw`` (radians).
+
+    The four wall-aligned yaws (multiples of 90 degrees in the upright, wall-aligned frame), starting at the one
+    nearest ``yaw``, and ``yaw`` itself first where it is more than ``keep_within_deg`` off that one: a HOG pose
+    often gives an object's side view, 90 degrees off, which a box fit at the pose's yaw alone cannot undo.
+
+    Examples
+    --------
+    >>> [round(math.degrees(y)) for y in candidate_yaws(math.radians(93.0))]
+    [90, 180, 270, 360]
+    >>> [round(math.degrees(y)) for y in candidate_yaws(math.radians(30.0))]
+    [30, 0, 90, 180, 270]
+    """
+    quarter = 0.5 * math.pi
+    aligned = round(float(yaw) / quarter) * quarter
+    yaws = [aligned + k * quarter for k in range(4)]
+    if abs(float(yaw) - aligned) > math.radians(keep_within_deg):
+        yaws.insert(0, float(yaw))
+    return yaws
 
 
 def occluded_edges(boxes: ArrayLike, width: int, margin: float = 2.0, same_iou: float = 0.3) -> NDArray[np.bool_]:
@@ -198,17 +221,16 @@ def _check(candidates: Sequence[Sequence[DetectedObject]], appearance: Sequence[
     return cands, app
 
 
-def _misfit(flat: list[DetectedObject], edges: _BoxEdges, centers: FloatArray, free_h: FloatArray, width: int,
-            height: int, cam_h: float, sigma: float) -> FloatArray:
+def _misfit(edges: _BoxEdges, yaw: FloatArray, centers: FloatArray, free_h: FloatArray, cam_h: float,
+            sigma: float) -> FloatArray:
     """Robust box misfit of every flattened candidate at camera height ``cam_h``: (F,).
 
     The fit starts from the free-height fit (``centers`` at ``free_h``) scaled to ``cam_h``, which is exact
     for a scaled model and close otherwise, so a few Levenberg-Marquardt steps suffice."""
     start = centers.copy()
     start[:, :2] *= (cam_h / free_h)[:, None]
-    c, _ = fit_boxes(flat, start, width, height, camera_height=cam_h, iterations=8)
-    yaw = np.array([o.yaw for o in flat])
-    r = edges.residual(c[:, :2], yaw, np.full(len(flat), cam_h)) / sigma
+    _, _, resid = _fit_edges(edges, yaw, start, cam_h, cam_h, iterations=8)
+    r = resid / sigma
     rho = r * r / (1.0 + r * r)
     return np.where(np.isfinite(rho), rho, 1.0).sum(axis=1)
 
@@ -301,7 +323,7 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
     centers = init.centers
     free_h = init.fitted_camera_heights
     free_h = np.where(np.isfinite(free_h) & (free_h > 0), free_h, np.median(np.r_[free_h[free_h > 0], 1.6]))
-    edges = _BoxEdges(flat, w, h)
+    yaw_flat = np.array([o.yaw for o in flat])
     a_flat = np.concatenate([a - a.min() for a in app]) * float(appearance_weight)
 
     def prior(hk: float) -> float:
@@ -309,14 +331,12 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
             return 0.0
         return float((math.log(hk / float(height_prior[0])) / float(height_prior[1])) ** 2)
 
-    def totals(hs: FloatArray, sel: NDArray[np.int64]) -> tuple[FloatArray, list[FloatArray]]:
-        """Total cost at each height and the (N, M_max) cost matrices, candidates ``sel`` only."""
-        sub = [flat[i] for i in sel]
-        sub_edges = _BoxEdges(sub, w, h)
+    def totals(hs: FloatArray, sel: NDArray[np.int64], edges: _BoxEdges) -> tuple[FloatArray, list[FloatArray]]:
+        """Total cost at each height and the (N, M_max) cost matrices, candidates ``sel`` (their ``edges``)."""
         prof, costs = np.zeros(len(hs)), []
         for k, hk in enumerate(hs):
             cost = np.full((n, m_max), np.inf)
-            cost[owner[sel], slot[sel]] = _misfit(sub, sub_edges, centers[sel], free_h[sel], w, h, float(hk),
+            cost[owner[sel], slot[sel]] = _misfit(edges, yaw_flat[sel], centers[sel], free_h[sel], float(hk),
                                                   edge_sigma) + a_flat[sel]
             prof[k] = cost.min(axis=1).sum() + prior(float(hk))
             costs.append(cost)
@@ -325,11 +345,11 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
     everything = np.arange(len(flat))
     if camera_height is not None:
         hs = np.array([float(camera_height)])
-        prof, costs = totals(hs, everything)
+        prof, costs = totals(hs, everything, _BoxEdges(flat, w, h))
         best = 0
     else:
         coarse = np.geomspace(lo, hi, int(n_heights))
-        prof0, costs0 = totals(coarse, everything)
+        prof0, costs0 = totals(coarse, everything, _BoxEdges(flat, w, h))
         hs, prof, costs = [coarse], [prof0], list(costs0)
         # the finer grids refine the best few local minima of the coarse profile (several objects with many
         # candidates make it multimodal), each fitting only each object's best few candidates there
@@ -339,12 +359,13 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
             near = np.min(np.stack(costs0[max(k0 - 1, 0):k0 + 2]), axis=0)  # (N, M_max)
             rank = np.argsort(np.argsort(near, axis=1, kind="stable"), axis=1)
             sel = everything[rank[owner, slot] < _KEEP]
+            sel_edges = _BoxEdges([flat[i] for i in sel], w, h)
             centre, centre_cost = float(coarse[k0]), float(prof0[k0])
             step = (hi / lo) ** (1.0 / (int(n_heights) - 1))
             for _ in range(levels - 1):  # a finer grid strictly between the neighbours of the best height so far
                 fine = np.geomspace(max(centre / step, lo), min(centre * step, hi), _FINE + 2)[1:-1]
                 fine = fine[np.abs(np.log(fine / centre)) > 1e-9]
-                prof2, costs2 = totals(fine, sel)
+                prof2, costs2 = totals(fine, sel, sel_edges)
                 hs.append(fine)
                 prof.append(prof2)
                 costs += costs2
@@ -355,8 +376,9 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         best = int(np.argmin(prof))
     cost = costs[best]
     index = np.argmin(cost, axis=1).astype(np.int64)
-    lat_bottom_below = np.array([c[0].bbox_pano[3] > 0.5 * h for c in cands])
-    cam = float(hs[best]) if (camera_height is not None or lat_bottom_below.any()) else float("nan")
+    bottom = np.array([[0.0, c[0].bbox_pano[3]] for c in cands])
+    below = pixel_to_lonlat(bottom, w, h)[:, 1] < 0  # a box bottom below the horizon constrains the height
+    cam = float(hs[best]) if (camera_height is not None or below.any()) else float("nan")
     order = np.argsort(hs)
     return ModelChoice(objects=tuple(cands[i][int(index[i])] for i in range(n)), index=index, camera_height=cam,
                        cost=cost, heights=hs[order], profile=prof[order])

@@ -648,9 +648,17 @@ def fit_boxes(objects: Sequence[DetectedObject], centers: ArrayLike, width: int,
     c = np.asarray(centers, dtype=np.float64).reshape(n, 3).copy()
     if n == 0:
         return c, np.zeros(0)
-    edges = _BoxEdges(objs, width, height)
+    c, h, _ = _fit_edges(_BoxEdges(objs, width, height), np.array([o.yaw for o in objs]), c, camera_height,
+                         start_height, iterations)
+    return c, h
+
+
+def _fit_edges(edges: _BoxEdges, yaw: FloatArray, centers: FloatArray, camera_height: float | None,
+               start_height: ArrayLike, iterations: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """:func:`fit_boxes` on prepared box edges; also returns the final residual (N, 4) (weighted radians)."""
+    c = centers.copy()
+    n = len(c)
     size = edges.size
-    yaw = np.array([o.yaw for o in objs])
     free_h = camera_height is None
     h = np.broadcast_to(np.asarray(start_height if free_h else camera_height, dtype=np.float64), (n,)).copy()
     p = np.column_stack([c[:, :2], h]) if free_h else c[:, :2].copy()
@@ -686,7 +694,7 @@ def fit_boxes(objects: Sequence[DetectedObject], centers: ArrayLike, width: int,
         r0 = np.where(better[:, None], r1, r0)
         damp = np.where(better, damp * 0.3, damp * 10.0)
     c[:, :2] = p[:, :2]
-    return c, (p[:, 2] if free_h else h)
+    return c, (p[:, 2] if free_h else h), r0
 
 
 def _fit_horizontal(left: FloatArray, right: FloatArray, yaw: FloatArray, size2: FloatArray,

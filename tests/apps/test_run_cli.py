@@ -203,3 +203,16 @@ def test_ceiling_estimate_follows_the_object_mask(room_png, monkeypatch):
     seen.clear()
     run_pipeline(pano, RunOptions(objects=False, samples=50))
     assert seen == ["lowest_mode"]
+
+
+def test_eo_of_a_fully_symmetric_candidate_model_is_read_at_any_yaw():
+    """A class can mix models with and without a yaw (tables: 'two' and 'full'); the model choice reads the E_o of
+    every candidate at the candidate yaws, also of a fully symmetric one (it used to raise)."""
+    from types import SimpleNamespace
+
+    from apps.pipeline import _eo_at
+
+    est = SimpleNamespace(pitch=0.2, e_o_at=lambda r, p, m: 1.0 + 0.1 * r)
+    model = SimpleNamespace(id="table-x", symmetry="full")
+    out = _eo_at(est, np.array([1.0, 0.5, 0.0]), model, np.array([0.0, np.pi / 2]))
+    assert out.shape == (2,) and np.all(np.isfinite(out))
