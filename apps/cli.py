@@ -56,6 +56,9 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--limit", type=int, default=0, help="only the first N rooms (0: all)")
     e.add_argument("--jobs", type=int, default=0, help="worker processes (0: one per core)")
     e.add_argument("--force", action="store_true", help="re-run rooms whose scene.json exists")
+    e.add_argument("--gt-scale", action="store_true",
+                   help="each room's camera height from its gt.json (the scale known: scores the layout and poses "
+                        "without the scale estimate)")
     e.epilog = "--detector gt-boxes uses each room's own gt.json boxes (pose and sampling without detection errors)"
     add_run_options(e)
 

@@ -49,7 +49,10 @@ def _run_room(room: str, out: str, opts: dict, force: bool) -> tuple[str, str | 
         return room_p.name, None
     gt = load_json(room_p / "gt.json") or {}
     o = dict(opts)
-    if gt.get("scale_known") is False and o.get("camera_height") is None:
+    gt_scale = bool(o.pop("gt_scale", False))
+    if (gt_scale or gt.get("scale_known") is False) and o.get("camera_height") is None:
+        if not isinstance(gt.get("camera_height_m"), (int, float)):
+            return room_p.name, f"--gt-scale: {room_p / 'gt.json'} has no camera_height_m"
         o["camera_height"] = float(gt["camera_height_m"])
     if o.get("detector") == GT_BOXES:
         o["detector"] = f"annotations:{room_p / 'gt.json'}"
@@ -116,7 +119,9 @@ def run(args) -> int:
         o = options_from_args(args)
         opts = {"camera_height": o.camera_height, "detector": o.detector, "samples": o.samples, "seed": o.seed,
                 "objects": o.objects, "sampler_mode": o.sampler_mode,
-                "model_choice": o.model_choice, "size": args.size}
+                "model_choice": o.model_choice, "size": args.size, "gt_scale": bool(getattr(args, "gt_scale", False))}
+        if opts["gt_scale"] and o.camera_height is not None:
+            raise UserError("--gt-scale and --camera-height both fix the scale: give one")
         jobs = max(1, min(args.jobs or os.cpu_count() or 1, len(rooms)))
         prog.say(f"eval: running the pipeline on {len(rooms)} rooms of {data} into {out} ({jobs} processes)")
         with prog.stage("run"):
@@ -134,7 +139,8 @@ def run(args) -> int:
         init = load_json(pred / r.name / "scene_init.json")
         scores.append(score_room(r.name, scene, gt, init, errors.get(r.name)))
         dets = load_json(pred / r.name / "detections.json")
-        if gt.get("objects") and isinstance(dets, dict) and args.detector != GT_BOXES:
+        if (gt.get("objects") and isinstance(dets, dict) and args.detector != GT_BOXES
+                and not getattr(args, "no_objects", False)):
             truths.append((r, dets))
     ap = _detection_ap(truths) if truths else None
     summary = summarize(scores, ap)

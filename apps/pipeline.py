@@ -144,7 +144,7 @@ def _detect(image: np.ndarray, upright: np.ndarray, rect, spec: str, prog: Progr
         threshold = getattr(detector, "score_threshold", None)
         if threshold is not None and float(threshold) > CANDIDATE_SCORE:
             detector.score_threshold = CANDIDATE_SCORE
-        candidates = detect_panorama(upright, detector, views=views)
+        candidates = detect_panorama(upright, detector, views=views, score_threshold=CANDIDATE_SCORE)
         dets = candidates if threshold is None else [d for d in candidates if d.score >= float(threshold)]
     prog.say(f"  {len(dets)} objects: " + ", ".join(sorted({d.label for d in dets})))
     return dets, candidates

@@ -27,7 +27,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from detect import ImageDetection, detect_panorama, get_detector, nms_sphere, segment_detections, to_panorama
+from detect import (ImageDetection, detect_panorama, get_detector, merge_sphere, nms_sphere, segment_detections,
+                    tile_consensus, to_panorama)
 from detect.tiles import PanoramaTiler, _tiler, render_tiles, tile_detections
 from panogeom.perspective import detection_views
 
@@ -105,6 +106,9 @@ def main(argv: list[str] | None = None) -> int:
     raw = tile_detections(pano, det, views)
     merged = nms_sphere(raw)
     rows.append((f"spherical NMS {len(raw)} -> {len(merged)}", med(lambda: nms_sphere(raw), args.repeat)))
+    groups = merge_sphere(raw)
+    rows.append((f"tile consensus score of {len(groups)} merged detections",
+                 med(lambda: tile_consensus(groups, views), args.repeat)))
     total = med(lambda: detect_panorama(pano, det, views), args.repeat)
     rows.append((f"**18 tiles + NMS at {W}x{H}, total (cheap detector)**", total))
 

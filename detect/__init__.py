@@ -3,7 +3,7 @@
 - :mod:`detect.detection`: the :class:`Detection` record (class, score,
   seam-aware panorama box, optional mask) and the :class:`Detector` protocol.
 - :mod:`detect.tiles`: perspective tiles -> detector -> boxes in the panorama
-  -> NMS on the sphere (:func:`detect_panorama`).
+  -> NMS on the sphere -> tile-consensus scores (:func:`detect_panorama`).
 - :mod:`detect.nms`: overlap and non-maximum suppression on the sphere.
 - :mod:`detect.grabcut`: automatic grab-cut masks of detected objects.
 - :mod:`detect.backends`: detectors by name or file (:func:`get_detector`):
@@ -16,8 +16,8 @@ Convention: CONVENTIONS.md; panoramas are ``(H, W, 3) uint8`` RGB with W == 2*H.
 from .backends import ModelFileError, get_detector
 from .detection import BatchDetector, Detection, Detector, ImageDetection, PanoramaDetector, TileBox
 from .grabcut import ObjectCrop, grabcut_crop, segment_detections
-from .nms import nms_sphere, pano_box_iou, spherical_iou
-from .tiles import PanoramaTiler, box_in_view, detect_panorama, tile_detections, to_panorama
+from .nms import merge_sphere, nms_sphere, pano_box_iou, spherical_iou
+from .tiles import PanoramaTiler, box_in_view, detect_panorama, tile_consensus, tile_detections, to_panorama
 
 __all__ = [
     "Detection",
@@ -31,6 +31,8 @@ __all__ = [
     "to_panorama",
     "box_in_view",
     "PanoramaTiler",
+    "tile_consensus",
+    "merge_sphere",
     "nms_sphere",
     "spherical_iou",
     "pano_box_iou",

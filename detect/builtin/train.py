@@ -287,6 +287,8 @@ def validate(out: Path, val: Path, record: dict[str, Any] | None = None, *, val_
     record["flip"] = bool(flip)
     record["views"] = {"wide": bool(wide), "size": 2 * size}
     record["score_threshold"] = round(float(thr), 3)
+    record["merge"] = ("detect.tiles.detect_panorama defaults: the group's medoid box (detect.nms.merge_sphere), "
+                       "score by tile consensus 0.5 (detect.tiles.tile_consensus)")
     record["validation"] = {
         "iou": 0.5, "difficult_below_fraction": DIFFICULT_FRACTION, "detector_score_threshold": 0.05,
         "chosen": _setting(size, wide, flip), "border_snap": BuiltinDetector(wpath).border_snap,

@@ -216,3 +216,28 @@ def test_eo_of_a_fully_symmetric_candidate_model_is_read_at_any_yaw():
     model = SimpleNamespace(id="table-x", symmetry="full")
     out = _eo_at(est, np.array([1.0, 0.5, 0.0]), model, np.array([0.0, np.pi / 2]))
     assert out.shape == (2,) and np.all(np.isfinite(out))
+
+
+def test_eval_with_the_scale_from_gt_json(room_png, tmp_path, capsys):
+    """`pano2cad eval --gt-scale`: each room runs at its own gt camera height; eval.json and table2.md."""
+    import shutil
+
+    data = tmp_path / "data" / "room-0000"
+    data.mkdir(parents=True)
+    for f in ("pano.png", "gt.json"):
+        shutil.copy(room_png / f, data / f)
+    gt = json.loads((data / "gt.json").read_text())
+    out = tmp_path / "ev"
+    assert main(["eval", "--data", str(data.parent), "--out", str(out), "--no-objects", "--gt-scale",
+                 "--jobs", "1", "--size", "512", "--quiet"]) == 0
+    scene = json.loads((out / "room-0000" / "scene.json").read_text())
+    assert scene["camera"]["height_m"] == pytest.approx(gt["camera_height_m"])
+    ev = json.loads((out / "eval.json").read_text())
+    assert ev["summary"]["layout"]["n_rooms"] == 1 and ev["summary"]["layout"]["failed"] == 0
+    assert ev["rooms"][0]["layout"]["camera_height_err"] == pytest.approx(0.0, abs=1e-9)
+    assert ev["summary"]["layout"]["iou_3d"] > 0.5
+    assert (out / "table2.md").is_file() and "Detection AP" not in (out / "table2.md").read_text()
+    capsys.readouterr()
+    assert main(["eval", "--data", str(data.parent), "--out", str(tmp_path / "ev2"), "--gt-scale",
+                 "--camera-height", "1.5", "--quiet"]) == 2
+    _one_line_error(capsys, "--gt-scale")

@@ -8,9 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from detect.detection import Detection, ImageDetection
-from detect.nms import (box_iou, box_nms, nms_sphere, pano_box_iou, pano_box_solid_angle, region_contains,
+from detect.nms import (box_iou, box_nms, merge_sphere, nms_sphere, pano_box_iou, pano_box_solid_angle, region_contains,
                         solid_angle, spherical_overlaps)
-from detect.tiles import box_in_view, to_panorama
+from detect.tiles import box_in_view, tile_consensus, to_panorama
 from panogeom.coords import pixel_grid_rays
 from panogeom.perspective import PinholeView, detection_views
 
@@ -159,6 +159,49 @@ def test_nms_prefers_a_whole_view_over_a_truncated_one():
     merged = nms_sphere([part, whole])
     assert len(merged) == 1
     assert merged[0].tile.index == 0 and merged[0].score == 0.9
+
+
+def test_the_representative_is_the_box_most_tiles_agree_on():
+    """Three tiles box one object tightly, a fourth (best score) loosely: the merged box is a tight one."""
+    views = detection_views(200)
+    obj = _object_at(15, -25, half=25)  # seen whole by views 0, 1 (pitch 0) and 12 (pitch -50)
+    tight = [to_panorama(ImageDetection("chair", s, box_in_view(obj, views[k])), views[k], W, H, index=k)
+             for k, s in ((0, 0.7), (1, 0.65), (12, 0.6))]
+    b = box_in_view(obj, views[0])
+    loose = to_panorama(ImageDetection("chair", 0.9, b + np.array([-8.0, -8.0, 8.0, 8.0])), views[0], W, H,
+                        index=0)
+    (merged, members), = merge_sphere([loose, *tight])
+    assert len(members) == 4 and merged.score == 0.9 and merged.support == 4
+    assert any(merged.tile == t.tile for t in tight)
+    assert spherical_overlaps([merged, obj])[0][0, 1] > spherical_overlaps([loose, obj])[0][0, 1] + 0.15
+    assert [d.box.tolist() for d in nms_sphere([loose, *tight])] == [merged.box.tolist()]
+
+
+def test_tile_consensus_ranks_what_most_tiles_find_above_what_one_tile_finds():
+    views = detection_views(200)
+    obj = _object_at(15, -25, half=25)
+    seen = []
+    for k, v in enumerate(views):  # the tiles that see the object whole (inside by 2 % of the width)
+        try:
+            b = box_in_view(obj, v)
+        except ValueError:  # partly behind the view
+            continue
+        if b[0] >= 4 and b[1] >= 4 and b[2] <= 196 and b[3] <= 196:
+            seen.append(k)
+    assert len(seen) >= 2
+    found = [to_panorama(ImageDetection("tv", 0.8, box_in_view(obj, views[k])), views[k], W, H, index=k)
+             for k in seen]
+    # the same score from one tile only: a false box
+    lone = to_panorama(ImageDetection("plant", 0.85, box_in_view(obj, views[seen[0]])), views[seen[0]], W, H,
+                       index=seen[0])
+    out = tile_consensus(merge_sphere([*found, lone]), views)
+    assert [d.label for d in out] == ["tv", "plant"]
+    assert out[0].score == pytest.approx(0.8)
+    assert out[1].score == pytest.approx(0.5 * 0.85 + 0.5 * 0.85 / len(seen))
+    # weight 0: the best member's score
+    assert [d.score for d in tile_consensus(merge_sphere([*found, lone]), views, 0.0)] == [0.85, 0.8]
+    with pytest.raises(ValueError, match=r"weight: expected a number in \[0, 1\]"):
+        tile_consensus([], views, 1.5)
 
 
 def test_nms_checks_its_thresholds():
