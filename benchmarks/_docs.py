@@ -43,3 +43,12 @@ def replace_section(path: str | os.PathLike[str], text: str, heading: str | None
         f.write(new)
     os.replace(tmp, p)
     return p
+
+
+def publish(lines: list[str], update_docs: bool, path: str | os.PathLike[str], heading: str) -> str:
+    """Print a benchmark's section (``lines`` joined) and, with ``update_docs``, write it into ``path``."""
+    text = "\n".join(lines) + "\n"
+    print(text)
+    if update_docs:
+        replace_section(path, text, heading)
+    return text

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import sys as _sys
 _sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
-from _docs import EVALUATION_MD, replace_section  # noqa: E402
+from _docs import EVALUATION_MD, publish  # noqa: E402
 
 import argparse
 import json
@@ -99,10 +99,7 @@ def main(argv: list[str] | None = None) -> int:
             mad = np.nanmedian(np.abs(v - med), axis=0)
             lines.append(f"| {mode} | {cls} | {len(v)} | {' / '.join(f'{x:+.2f}' for x in med)} | "
                          f"{' / '.join(f'{x:.2f}' for x in mad)} |")
-    text = "\n".join(lines) + "\n"
-    print(text)
-    if args.update_docs:
-        replace_section(EVALUATION_MD, text, SECTION)
+    publish(lines, args.update_docs, EVALUATION_MD, SECTION)
     return 0
 
 
