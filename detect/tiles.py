@@ -325,9 +325,10 @@ def tile_consensus(groups: Sequence[tuple[Detection, Sequence[Detection]]], view
     ``(1 - weight) * best + weight * mean``; with no such tile, ``best``.
 
     Measured on 90 synthetic rooms of the tuning seeds 7000 and 8000 (the
-    builtin detector, panorama AP@0.5 of bed, chair, TV and plant): 0.869 with
-    the best score alone, 0.895 with ``weight=0.5``. False and wrong-class
-    boxes are mostly found by one or two of the tiles that see them.
+    builtin detector, panorama AP@0.5 of bed, chair, TV and plant;
+    ``benchmarks/eval_detect_merge.py``): 0.869 with the best score alone,
+    0.895 with ``weight=0.5``. False and wrong-class boxes are mostly found by
+    one or two of the tiles that see them.
 
     Parameters
     ----------
