@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from panogeom.coords import pixel_to_lonlat, wrap_u
-from panogeom.perspective import PinholeView
+from panogeom.perspective import PinholeView, segment_to_arc
 
 __all__ = [
     "ImageDetection",
@@ -193,10 +193,9 @@ class TileBox:
         (True, [0.0, 0.894, 0.0, 0.894])
         """
         u0, v0, u1, v1 = (float(x) for x in self.box)
-        tl, tr, br, bl = self.view.pixel_to_ray(np.array([[u0, v0], [u1, v0], [u1, v1], [u0, v1]]))
+        edges = np.array([[u0, v1, u0, v0], [u0, v0, u1, v0], [u1, v0, u1, v1], [u1, v1, u0, v1]])
+        _, _, n = segment_to_arc(edges, self.view)
         centre = self.view.pixel_to_ray(np.array([0.5 * (u0 + u1), 0.5 * (v0 + v1)]))
-        n = np.stack([np.cross(bl, tl), np.cross(tl, tr), np.cross(tr, br), np.cross(br, bl)])
-        n /= np.linalg.norm(n, axis=1, keepdims=True)
         return n * np.where(n @ centre < 0, -1.0, 1.0)[:, None]
 
     def border_edges(self, margin: float = 2.0) -> NDArray[np.bool_]:

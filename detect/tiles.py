@@ -372,12 +372,9 @@ def tile_consensus(groups: Sequence[tuple[Detection, Sequence[Detection]]], view
         if weight > 0.0:
             rays = region_boundary(det, 16)
             for v in vs:
-                uv, front = v.ray_to_pixel(rays)
-                if not np.all(front):
-                    continue
+                b = _rays_box_in_view(rays, v)
                 e = float(margin) * v.width
-                if (uv[:, 0].min() >= e and uv[:, 1].min() >= e and uv[:, 0].max() <= v.width - e
-                        and uv[:, 1].max() <= v.height - e):
+                if b is not None and b[0] >= e and b[1] >= e and b[2] <= v.width - e and b[3] <= v.height - e:
                     seen.append(best_of.get(v, 0.0))
         score = det.score if not seen else (1.0 - weight) * det.score + weight * float(np.mean(seen))
         out.append(replace(det, score=float(score)))
@@ -412,9 +409,16 @@ def box_in_view(det: Detection, view: PinholeView, samples: int = 64) -> Array:
     >>> np.round(box_in_view(d, view), 6).tolist()
     [25.0, 25.0, 75.0, 75.0]
     """
-    rays = region_boundary(det, samples)
-    uv, front = view.ray_to_pixel(rays)
-    if not np.all(front):
+    box = _rays_box_in_view(region_boundary(det, samples), view)
+    if box is None:
         raise ValueError(f"det: expected a region in front of the view (yaw={view.yaw:.3f}, "
                          f"pitch={view.pitch:.3f}), got one that reaches behind it")
+    return box
+
+
+def _rays_box_in_view(rays: Array, view: PinholeView) -> Array | None:
+    """Pixel bounding box ``(u0, v0, u1, v1)`` of boundary rays in a view; None if any lies behind it."""
+    uv, front = view.ray_to_pixel(rays)
+    if not np.all(front):
+        return None
     return np.array([uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()])

@@ -778,7 +778,8 @@ class SamplerConfig:
     initial_wall_height : float or None
         Wall height of the initial hypothesis (paper mode default 2.5 m);
         None: from the camera height fitted to the boxes, and the positions
-        refitted at that height (module docstring).
+        refitted at that height (module docstring). Given, the improved mode
+        fits the positions to the boxes at the camera height it implies.
     position_variance : (along, across)
         Variance of the position proposals as a multiple of the
         camera-object distance, m^2 per m (paper: 0.1, 0.005).
@@ -1279,12 +1280,17 @@ def map_estimate(likelihood: SurfaceLikelihood, objects: Sequence[DetectedObject
     init = initialise_objects(objs, image_width, image_height)
     yaw_pose = init.yaws.copy()
     xy = init.centers[:, :2].copy()
-    if cfg.initial_wall_height is not None:
-        lam0 = cfg.initial_wall_height / prob.ceiling
-    elif cfg.initial_camera_height is not None and n:
-        lo_h, hi_h = (float(v) for v in cfg.wall_height_range)
-        lam0 = float(np.clip(float(cfg.initial_camera_height) / prob.h0, lo_h / prob.ceiling, hi_h / prob.ceiling))
-        xy = fit_boxes(objs, init.centers, image_width, image_height, camera_height=lam0 * prob.h0)[0][:, :2]
+    if cfg.initial_wall_height is not None or (cfg.initial_camera_height is not None and n):
+        if cfg.initial_wall_height is not None:
+            lam0 = cfg.initial_wall_height / prob.ceiling
+        else:
+            lo_h, hi_h = (float(v) for v in cfg.wall_height_range)
+            lam0 = float(np.clip(float(cfg.initial_camera_height) / prob.h0, lo_h / prob.ceiling,
+                                 hi_h / prob.ceiling))
+        # at a given scale the improved scheme fits the positions to all four box edges at that camera height
+        # (the paper's initialisation uses the box's width alone)
+        if n and (cfg.mode == "improved" or cfg.initial_wall_height is None):
+            xy = fit_boxes(objs, init.centers, image_width, image_height, camera_height=lam0 * prob.h0)[0][:, :2]
     else:
         lam0, centers = box_scale(objs, image_width, image_height, prob.h0, prob.ceiling, cfg.wall_height_range,
                                   init=init)

@@ -340,3 +340,23 @@ def test_flip_moves_turn_a_back_to_front_object_round(seed):
     assert SamplerConfig.improved().flip_moves and not SamplerConfig().flip_moves
     assert max(yaw_errors(SamplerConfig.improved(n_samples=400))) < math.radians(10.0)
     assert min(yaw_errors(SamplerConfig.improved(n_samples=400, flip_moves=False))) > math.radians(90.0)
+
+
+def test_a_given_scale_starts_the_improved_scheme_at_the_box_fit():
+    """With the wall height given (a known camera height), the improved scheme's initial positions are fitted to
+    all four box edges at that height; the paper's keep the width-only initialisation."""
+    pl, labels, dets, floor0, ceil0 = synthetic(10, yaw_noise_deg=8.0)
+    lik = surface_likelihood(observe_labels(labels, [d.bbox_pano for d in dets], width=128,
+                                            object_pixels="matched"), floor0, ceil0, 1.6)
+    truth = pl.centers[:, :2] * (1.6 / pl.camera_height)  # the likelihood's frame: camera 1.6 high
+    errs = {}
+    for cfg in (SamplerConfig(epochs=1, samples_per_epoch=2), SamplerConfig.improved(epochs=1, samples_per_epoch=2)):
+        fixed = replace(cfg, wall_height_range=(ceil0, ceil0), initial_wall_height=ceil0)
+        res = map_estimate(lik, dets, image_width=W, image_height=W // 2, config=fixed, rng=0)
+        got = np.array([o.center[:2] for o in res.initial.objects])
+        errs[cfg.mode] = np.hypot(*(got - truth).T)
+    init = initialise_objects(dets, W, W // 2).centers[:, :2]
+    fitted = fit_boxes(dets, initialise_objects(dets, W, W // 2).centers, W, W // 2, camera_height=1.6)[0][:, :2]
+    assert np.allclose(errs["paper"], np.hypot(*(init - truth).T), atol=1e-9)
+    assert np.allclose(errs["improved"], np.hypot(*(fitted - truth).T), atol=1e-9)
+    assert errs["improved"].mean() < errs["paper"].mean()
