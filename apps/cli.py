@@ -115,6 +115,9 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--models", choices=["box", "appearance"], default="box",
                    help="model of each object: best fit to its box at the shared camera height, or nearest HOG "
                         "render (the paper)")
+    p.add_argument("--crop", choices=["tile", "box"], default="tile",
+                   help="the pose CRF's crop of a detection: the region its tile box bounds, or its whole panorama "
+                        "box (looser where the tile is turned or pitched)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sampler")
     p.add_argument("--size", type=int, default=1024, help="working width in pixels (larger inputs are downscaled)")
     p.add_argument("--no-objects", action="store_true", help="layout only: no detection, pose or sampling of objects")

@@ -12,8 +12,9 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
    (:mod:`layout.surfaces`)
 5. room geometry from the labels: Manhattan floor polygon and wall height,
    metric under an assumed camera height (:mod:`layout.roomgeom`)
-6. object crops -> HOG -> k-NN against the model library's renders -> pose
-   CRF by TRW-S -> yaw and model per object (:mod:`posecrf`)
+6. object crops (the region each detection's tile box bounds, :func:`object_crop`)
+   -> HOG -> k-NN against the model library's renders -> pose CRF by TRW-S
+   -> yaw and model per object (:mod:`posecrf`)
 7. model choice by box fit (not in the paper, ``RunOptions.model_choice``):
    each object's model among its class's and its wall-aligned yaw, with the
    camera height they share, from how well they fit the detection boxes
@@ -68,6 +69,9 @@ class RunOptions:
         ``"box"`` (default): each object's model among its class's by how well it fits its box at the shared
         camera height, with the HOG distance as appearance cost (:func:`layout.modelfit.select_models`);
         ``"appearance"``: the model of the nearest HOG render (the paper).
+    crop : str
+        The pose CRF's crop of a detection (:func:`object_crop`): ``"tile"`` (default) the region its tile box
+        bounds where it has one, ``"box"`` its whole panorama box.
     """
 
     camera_height: float | None = None
@@ -77,6 +81,7 @@ class RunOptions:
     objects: bool = True
     sampler_mode: str = "improved"
     model_choice: str = "box"
+    crop: str = "tile"
 
 
 @dataclass(frozen=True)
@@ -151,6 +156,11 @@ def _detect(image: np.ndarray, upright: np.ndarray, rect, spec: str, prog: Progr
 
 
 def _object_mask(dets: list, shape: tuple[int, int]) -> np.ndarray:
+    """(H, W) bool: the detections' panorama boxes, masked for the labeller and the room step.
+
+    The whole lon/lat extent ``box``, not only the region a tile box bounds (``boxes_mask(planes=...)``): the
+    tighter mask raised the synthetic tuning sets' layout 3D IoU (0.742 -> 0.756) but broke the hotel panorama's
+    (0.665 -> 0.173), whose labels around the furniture are poor (docs/EVALUATION.md, session 5)."""
     from layout.likelihood import boxes_mask
 
     if not dets:
@@ -183,10 +193,31 @@ def _eo_at(est, ray: np.ndarray, model, world_yaws: np.ndarray) -> np.ndarray:
     return np.array([est.e_o_at(float(r), est.pitch, model.id) for r in np.atleast_1d(rel)])
 
 
-def _poses(upright: np.ndarray, dets: list, prog: Progress) -> list:
+def object_crop(upright: np.ndarray, det, mode: str = "tile") -> tuple[np.ndarray, Any]:
+    """The pose CRF's crop of a detection and its view: ((h, 128, 3) uint8, PinholeView).
+
+    ``mode="tile"``: the region the detection's tile box bounds, where it has one (else its panorama box);
+    ``"box"``: its panorama box.
+
+    A tile box's panorama box (the lon/lat extent of its four great-circle edges) is wider than the region
+    it bounds whenever the tile is turned or pitched (docs/EVALUATION.md, box edges: +4.5 / -4.0 deg left /
+    right against the object's outline), and the library renders are cut tight around the silhouette."""
+    from panogeom.perspective import equirect_to_perspective
+    from posecrf.crops import extract_crop, outline_view
+
+    if mode not in ("tile", "box"):
+        raise ValueError(f"crop: expected 'tile' or 'box', got {mode!r}")
+    if det.tile is None or mode == "box":
+        return extract_crop(upright, det.box)
+    view = outline_view(det.tile.centre_ray(), det.tile.outline_rays(), size=128, margin=0.1)
+    return equirect_to_perspective(upright, view), view
+
+
+def _poses(upright: np.ndarray, dets: list, prog: Progress, crop_mode: str = "tile") -> list:
     """Per detection: (model, yaw in the upright frame or None, E_o table over 72 world-yaw bins or None,
     the pose estimate, the crop's ray), or None without a pose."""
-    from posecrf.crops import extract_crop
+    if crop_mode not in ("tile", "box"):
+        raise ValueError(f"crop: expected 'tile' or 'box', got {crop_mode!r}")
     from posecrf.library import builtin_library
     from posecrf.pose import estimate_poses
     from posecrf.render import PoseGrid, RenderSettings
@@ -206,7 +237,7 @@ def _poses(upright: np.ndarray, dets: list, prog: Progress) -> list:
         crops, views, kept = [], [], []
         for i in idx:
             try:
-                crop, view = extract_crop(upright, dets[i].box)
+                crop, view = object_crop(upright, dets[i], crop_mode)
             except ValueError as exc:  # a box 180 degrees wide or more has no perspective crop: no pose
                 prog.say(f"  no pose for a {cls}: {exc}")
                 continue
@@ -305,7 +336,7 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
     poses: list = []
     if dets:
         with prog.stage("pose", "object poses (HOG + pose CRF)"):
-            poses = _poses(upright, dets, prog)
+            poses = _poses(upright, dets, prog, options.crop)
 
     lib = builtin_library()
     objects, eo, alternatives = [], [], []
@@ -372,7 +403,9 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
 
         def sample(objs: list, tables: list, cfg):
             boxes = np.array([o.bbox_pano for o in objs]) if objs else None
-            obs = observe_labels(surf.labels, boxes, object_pixels="matched" if objs else "masked")
+            # each box's object evidence: the region its tile box bounds, not the looser panorama box
+            planes = [o.edge_planes for o in objs] if objs else None
+            obs = observe_labels(surf.labels, boxes, object_pixels="matched" if objs else "masked", box_planes=planes)
             es = surface_likelihood(obs, geom.floor, geom.ceiling_z, h0)
             return map_estimate(es, objs, image_width=W, image_height=H, orientation=tables or None,
                                 config=cfg, rng=options.seed)

@@ -198,6 +198,27 @@ class TileBox:
         centre = self.view.pixel_to_ray(np.array([0.5 * (u0 + u1), 0.5 * (v0 + v1)]))
         return n * np.where(n @ centre < 0, -1.0, 1.0)[:, None]
 
+    def outline_rays(self, samples_per_edge: int = 8) -> NDArray[np.float64]:
+        """Rays along the box's outline, ``samples_per_edge + 1`` per edge, in the panorama frame of ``view``.
+
+        Returns
+        -------
+        (4 * (samples_per_edge + 1), 3) float
+            Unit rays; with :meth:`centre_ray`, what a crop of just this box needs
+            (``posecrf.crops.outline_view``).
+        """
+        u0, v0, u1, v1 = (float(x) for x in self.box)
+        t = np.linspace(0.0, 1.0, int(samples_per_edge) + 1)
+        us, vs = u0 + t * (u1 - u0), v0 + t * (v1 - v0)
+        px = np.concatenate([np.stack([us, np.full_like(us, v0)], 1), np.stack([us, np.full_like(us, v1)], 1),
+                             np.stack([np.full_like(vs, u0), vs], 1), np.stack([np.full_like(vs, u1), vs], 1)])
+        return self.view.pixel_to_ray(px)
+
+    def centre_ray(self) -> NDArray[np.float64]:
+        """Unit ray through the box centre, in the panorama frame of ``view``: (3,) float."""
+        u0, v0, u1, v1 = (float(x) for x in self.box)
+        return self.view.pixel_to_ray(np.array([0.5 * (u0 + u1), 0.5 * (v0 + v1)]))
+
     def border_edges(self, margin: float = 2.0) -> NDArray[np.bool_]:
         """Which of the box's edges (left, top, right, bottom) lie within ``margin`` pixels of the tile border:
         there the object may go on beyond the tile, so the edge is not the object's. (4,) bool."""

@@ -74,7 +74,7 @@ from typing import Callable, Literal, Sequence, Union
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from panogeom.coords import lonlat_to_pixel, xy_to_lon
+from panogeom.coords import lonlat_to_pixel, pixel_to_ray, xy_to_lon
 
 from .labelmap import (
     CEILING,
@@ -145,8 +145,11 @@ def _resample_labels(labels: NDArray[np.uint8], width: int) -> NDArray[np.uint8]
     return labels[np.ix_(rows, cols)].copy()
 
 
-def _box_masks(boxes: ArrayLike | None, width: int, box_width: float | None) -> NDArray[np.bool_]:
-    """(K, H, W) pixel-centre masks of K panorama boxes, checked."""
+def _box_masks(boxes: ArrayLike | None, width: int, box_width: float | None,
+               planes: Sequence[ArrayLike | None] | None = None) -> NDArray[np.bool_]:
+    """(K, H, W) pixel-centre masks of K panorama boxes, checked; with ``planes[k]`` ((4, 3) inward unit normals of
+    great circles through the camera, e.g. ``DetectedObject.edge_planes``) box k's mask keeps only the pixels
+    on the inner side of all four."""
     w = _working_width(width)
     h = w // 2
     if boxes is None:
@@ -163,14 +166,26 @@ def _box_masks(boxes: ArrayLike | None, width: int, box_width: float | None) -> 
     u = np.arange(w) + 0.5
     v = np.arange(h) + 0.5
     out = np.zeros((len(b), h, w), bool)
+    if planes is not None and len(planes) != len(b):
+        raise ValueError(f"planes: expected one (4, 3) array or None per box ({len(b)}), got {len(planes)}")
+    rays = None
     for k, (u0, v0, u1, v1) in enumerate(b):
         cols = (u >= u0) & (u <= u1) if u0 <= u1 else (u >= u0) | (u <= u1)
         rows = (v >= v0) & (v <= v1)
         out[k] = rows[:, None] & cols[None, :]
+        if planes is not None and planes[k] is not None:
+            n = np.asarray(planes[k], dtype=np.float64)
+            if n.shape != (4, 3) or not np.all(np.isfinite(n)):
+                raise ValueError(f"planes[{k}]: expected a finite (4, 3) array of plane normals, got shape {n.shape}")
+            if rays is None:
+                uu, vv = np.meshgrid(u, v)
+                rays = pixel_to_ray(np.stack([uu, vv], -1), w, h)
+            out[k] &= np.all(rays @ n.T >= 0.0, axis=-1)
     return out
 
 
-def boxes_mask(boxes: ArrayLike | None, width: int, *, box_width: float | None = None) -> NDArray[np.bool_]:
+def boxes_mask(boxes: ArrayLike | None, width: int, *, box_width: float | None = None,
+               planes: Sequence[ArrayLike | None] | None = None) -> NDArray[np.bool_]:
     """Pixels of a ``W/2 x W`` panorama whose centres lie inside panorama boxes.
 
     Parameters
@@ -182,6 +197,9 @@ def boxes_mask(boxes: ArrayLike | None, width: int, *, box_width: float | None =
         Width W of the mask (even).
     box_width : float, optional
         Width of the panorama the boxes refer to (default ``width``).
+    planes : sequence of (4, 3) float or None, optional
+        Per box, the inward normals of the great circles that bound the
+        region inside it (as :func:`observe_labels`' ``box_planes``).
 
     Returns
     -------
@@ -198,7 +216,7 @@ def boxes_mask(boxes: ArrayLike | None, width: int, *, box_width: float | None =
            [1, 1, 0, 0, 0, 0, 1, 1],
            [0, 0, 0, 0, 0, 0, 0, 0]])
     """
-    return np.any(_box_masks(boxes, width, box_width), axis=0)
+    return np.any(_box_masks(boxes, width, box_width, planes), axis=0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -246,7 +264,8 @@ class SurfaceObservation:
 
 
 def observe_labels(labels: ArrayLike, boxes: ArrayLike | None = None, *, box_width: float | None = None,
-                   width: int = 256, object_pixels: ObjectPixels = "masked") -> SurfaceObservation:
+                   width: int = 256, object_pixels: ObjectPixels = "masked",
+                   box_planes: Sequence[ArrayLike | None] | None = None) -> SurfaceObservation:
     """Prepare an observed label map and its detection boxes for ``E_s``.
 
     Parameters
@@ -267,6 +286,11 @@ def observe_labels(labels: ArrayLike, boxes: ArrayLike | None = None, *, box_wid
         the pixels of box k observed 0 / 5 are object k's evidence, counted
         as reproduced where object k's silhouette covers them; other box
         pixels stay excluded.
+    box_planes : sequence of (4, 3) float or None, optional
+        Per box, the inward normals of the four great circles that bound the
+        detector's region (``detect.TileBox.edge_planes``; the panorama box
+        of a turned or pitched tile's box is larger than that region): box
+        k's pixels are only those inside them. None: the whole panorama box.
 
     Returns
     -------
@@ -286,7 +310,7 @@ def observe_labels(labels: ArrayLike, boxes: ArrayLike | None = None, *, box_wid
     w = _working_width(width)
     h = w // 2
     work = _resample_labels(lab, w)
-    per_box = _box_masks(boxes, w, lab.shape[1] if box_width is None else box_width)
+    per_box = _box_masks(boxes, w, lab.shape[1] if box_width is None else box_width, box_planes)
     in_box = np.any(per_box, axis=0)
     surface = (work >= FLOOR) & (work <= 4)
     clutter = (work == UNKNOWN) | (work == OBJECT)

@@ -55,6 +55,7 @@ __all__ = [
     "fold_yaw",
     "pano_box_ray",
     "crop_view",
+    "outline_view",
     "extract_crop",
 ]
 
@@ -233,7 +234,6 @@ def crop_view(box: ArrayLike, width: int, height: int, size: int = 128, margin: 
     if not (math.isfinite(margin) and margin >= 0):
         raise ValueError(f"margin: expected a fraction >= 0, got {margin!r}")
     centre = pano_box_ray(box, width, height)
-    lon, lat = ray_to_lonlat(centre)
     t = np.linspace(0.0, 1.0, int(samples_per_edge) + 1)
     us = u0 + t * (u1 - u0)
     vs = b[1] + t * (b[3] - b[1])
@@ -241,17 +241,60 @@ def crop_view(box: ArrayLike, width: int, height: int, size: int = 128, margin: 
         np.stack([us, np.full_like(us, b[1])], 1), np.stack([us, np.full_like(us, b[3])], 1),
         np.stack([np.full_like(vs, u0), vs], 1), np.stack([np.full_like(vs, u1), vs], 1),
     ])
-    rays = pixel_to_ray(outline, width, height)
+    try:
+        return outline_view(centre, pixel_to_ray(outline, width, height), size, margin)
+    except ValueError:
+        raise ValueError(f"box: expected a box narrower than 180 degrees that fits a perspective view, "
+                         f"got {b.tolist()}") from None
+
+
+def outline_view(centre: ArrayLike, outline: ArrayLike, size: int = 128, margin: float = 0.1) -> PinholeView:
+    """A level perspective view along ``centre`` whose field of view just holds the rays ``outline``.
+
+    What :func:`crop_view` does for a panorama box, for any outline: e.g. the four edges of a box in a
+    perspective tile (``detect.TileBox``), whose panorama box is larger than the region it bounds
+    whenever the tile is turned or pitched. The view has no roll; its half-extents are the largest
+    tangent-plane coordinates of the outline times ``1 + margin``; ``width = size`` and the height
+    follows the outline's aspect.
+
+    Parameters
+    ----------
+    centre : (3,) float
+        Optical axis (any length > 0), e.g. the ray through the box centre.
+    outline : (N, 3) float
+        Rays of the outline, all less than 90 degrees from ``centre``.
+    size : int
+        View width in pixels (>= 8).
+    margin : float
+        >= 0.
+
+    Returns
+    -------
+    PinholeView
+
+    Examples
+    --------
+    >>> v = outline_view([1.0, 0.0, 0.0], [[1.0, 0.1, 0.05], [1.0, -0.1, -0.05]], size=100, margin=0.0)
+    >>> round(math.degrees(v.fov), 3), v.height
+    (11.421, 50)
+    """
+    if int(size) != size or size < 8:
+        raise ValueError(f"size: expected an integer >= 8 pixels, got {size!r}")
+    if not (math.isfinite(margin) and margin >= 0):
+        raise ValueError(f"margin: expected a fraction >= 0, got {margin!r}")
+    c = _ray(centre)
+    rays = np.asarray(outline, dtype=np.float64).reshape(-1, 3)
+    lon, lat = ray_to_lonlat(c)
     probe = PinholeView(yaw=float(-lon), pitch=float(lat), roll=0.0, fov=math.pi / 2, width=2, height=2)
     uv, front = probe.ray_to_pixel(rays)
-    if not np.all(front):
-        raise ValueError(f"box: expected a box narrower than 180 degrees around its centre, got {b.tolist()}")
+    if len(rays) == 0 or not np.all(front):
+        raise ValueError("outline: expected rays within 90 degrees of the centre")
     xy = (uv - 1.0) / probe.focal  # tangent-plane coordinates
     hx = float(np.abs(xy[:, 0]).max()) * (1.0 + margin)
     hy = float(np.abs(xy[:, 1]).max()) * (1.0 + margin)
     fov = 2.0 * math.atan(hx)
-    if not (0.0 < fov < math.pi - 1e-6):
-        raise ValueError(f"box: expected a box that fits a perspective view, got {b.tolist()}")
+    if not (0.0 < fov < math.pi - 1e-6) or not hy > 0:
+        raise ValueError("outline: expected an outline that fits a perspective view")
     h_px = max(8, int(round(size * hy / hx)))
     return PinholeView(yaw=float(-lon), pitch=float(lat), roll=0.0, fov=fov, width=int(size), height=h_px)
 

@@ -2,7 +2,7 @@
 
 Usage::
 
-    pano2cad synth --seed 3000 --rooms 240 --size 1024 --out out/train/detect
+    pano2cad synth --seed 3000 --rooms 720 --size 1024 --out out/train/detect   # run 6; runs 1-5: 240
     pano2cad synth --seed 3500 --rooms 30 --size 1024 --out out/train/detect_val
     python -m detect.builtin.train --data out/train/detect --val out/train/detect_val \\
         --out detect/builtin/weights --minutes 25

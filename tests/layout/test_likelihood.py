@@ -279,3 +279,27 @@ def test_orientation_likelihood_forms():
     bad = orientation_likelihood([lambda y: np.zeros(3)], ["bed"])
     with pytest.raises(ValueError, match="E_o of object 0: expected finite energies of shape"):
         bad(np.zeros((2, 1)))
+
+
+def test_box_planes_restrict_a_box_to_the_region_they_bound():
+    """A panorama box with the great circles of a pitched tile's box: only pixels inside all four planes are the
+    box's (its object evidence when matched); without planes the whole box is."""
+    from panogeom.coords import pixel_to_ray
+
+    lab = render_scene_labels(ROOM, 2.6, 1.5, CENTERS, SIZES, YAWS, width=512, object_label=0)
+    box = np.array([[100.0, 150.0, 180.0, 220.0]])
+    whole = observe_labels(lab, box, width=128, object_pixels="matched")
+    # planes through the camera and the box's four corner-to-corner great circles, tilted inwards: a diamond
+    c = pixel_to_ray(np.array([[140.0, 185.0]]), 512, 256)[0]
+    corners = pixel_to_ray(np.array([[140.0, 150.0], [180.0, 185.0], [140.0, 220.0], [100.0, 185.0]]), 512, 256)
+    n = np.cross(corners, np.roll(corners, -1, axis=0))
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    n = n * np.where(n @ c < 0, -1.0, 1.0)[:, None]
+    part = observe_labels(lab, box, width=128, object_pixels="matched", box_planes=[n])
+    assert part.box_mask.sum() < 0.75 * whole.box_mask.sum() and part.box_mask.sum() > 0.3 * whole.box_mask.sum()
+    assert np.all(whole.box_mask[part.box_mask])
+    assert observe_labels(lab, box, width=128, box_planes=[None]).box_mask.sum() == whole.box_mask.sum()
+    with pytest.raises(ValueError, match="one \\(4, 3\\) array or None per box"):
+        observe_labels(lab, box, width=128, box_planes=[n, n])
+    with pytest.raises(ValueError, match="planes\\[0\\]"):
+        observe_labels(lab, box, width=128, box_planes=[n[:3]])

@@ -18,6 +18,7 @@ from posecrf.cache import library_renders  # noqa: E402
 from posecrf.crops import (  # noqa: E402
     crop_view,
     extract_crop,
+    outline_view,
     fold_yaw,
     object_pitch,
     pano_box_ray,
@@ -160,6 +161,33 @@ def test_crop_view_is_centred_on_the_box_and_covers_it():
         crop_view(box, 1000, 512)
     with pytest.raises(ValueError, match="v0 < v1"):
         crop_view([10, 300, 50, 200], W, H)
+
+
+def test_outline_view_of_a_pitched_tile_box_is_tighter_than_its_panorama_box():
+    from panogeom.coords import ray_to_pixel
+    from panogeom.perspective import PinholeView
+
+    W, H = 1024, 512
+    tile = PinholeView(yaw=0.7, pitch=-0.6, roll=0.0, fov=math.radians(90.0), width=448, height=448)
+    px = np.array([[150.0, 200.0], [300.0, 200.0], [300.0, 330.0], [150.0, 330.0]])
+    t = np.linspace(0.0, 1.0, 9)[:, None]
+    edge = np.concatenate([px[k] + t * (px[(k + 1) % 4] - px[k]) for k in range(4)])
+    rays = tile.pixel_to_ray(edge)
+    centre = tile.pixel_to_ray(px.mean(0))
+    view = outline_view(centre, rays, size=64, margin=0.0)
+    uv, front = view.ray_to_pixel(rays)
+    assert front.all()
+    assert uv[:, 0].min() >= -1e-6 and uv[:, 0].max() <= view.width + 1e-6
+    assert uv[:, 1].min() >= -1e-6 and uv[:, 1].max() <= view.height + 1e-6
+    assert min(abs(uv[:, 0].min()), abs(view.width - uv[:, 0].max())) < 1e-6  # touches one side: tight
+    # the same outline's panorama box (its lon/lat extent) needs a wider crop
+    pp = ray_to_pixel(rays, W, H)
+    loose = crop_view([pp[:, 0].min(), pp[:, 1].min(), pp[:, 0].max(), pp[:, 1].max()], W, H, size=64, margin=0.0)
+    assert view.fov < loose.fov - math.radians(2.0)
+    with pytest.raises(ValueError, match="within 90 degrees"):
+        outline_view([1.0, 0.0, 0.0], [[-1.0, 0.0, 0.0]])
+    with pytest.raises(ValueError, match="size"):
+        outline_view(centre, rays, size=4)
 
 
 def test_extract_crop_samples_the_panorama():
