@@ -327,7 +327,8 @@ def tile_consensus(groups: Sequence[tuple[Detection, Sequence[Detection]]], view
     Measured on 90 synthetic rooms of the tuning seeds 7000 and 8000 (the
     builtin detector, panorama AP@0.5 of bed, chair, TV and plant;
     ``benchmarks/eval_detect_merge.py``): 0.869 with the best score alone,
-    0.895 with ``weight=0.5``. False and wrong-class boxes are mostly found by
+    0.895 with ``weight=0.5`` (session-4 weights); 0.889 and 0.914 with the
+    retrained weights of session 5. False and wrong-class boxes are mostly found by
     one or two of the tiles that see them.
 
     Parameters
