@@ -44,6 +44,8 @@ from .progress import Progress
 DEFAULT_CAMERA_HEIGHT = 1.6
 #: Lowest detection score kept as a candidate for evaluation (``PipelineResult.extra["candidates"]``).
 CANDIDATE_SCORE = 0.05
+#: ``RunOptions.crop``: the region a tile box bounds, or the whole panorama box.
+CROP_MODES = ("tile", "box")
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,10 @@ class RunOptions:
     sampler_mode: str = "improved"
     model_choice: str = "box"
     crop: str = "tile"
+
+    def __post_init__(self) -> None:
+        if self.crop not in CROP_MODES:  # checked here: a bad mode inside the pose stage would read as "no pose"
+            raise ValueError(f"crop: expected one of {CROP_MODES}, got {self.crop!r}")
 
 
 @dataclass(frozen=True)
@@ -202,22 +208,21 @@ def object_crop(upright: np.ndarray, det, mode: str = "tile") -> tuple[np.ndarra
     A tile box's panorama box (the lon/lat extent of its four great-circle edges) is wider than the region
     it bounds whenever the tile is turned or pitched (docs/EVALUATION.md, box edges: +4.5 / -4.0 deg left /
     right against the object's outline), and the library renders are cut tight around the silhouette."""
+    from detect.nms import region_boundary
     from panogeom.perspective import equirect_to_perspective
     from posecrf.crops import extract_crop, outline_view
 
-    if mode not in ("tile", "box"):
-        raise ValueError(f"crop: expected 'tile' or 'box', got {mode!r}")
+    if mode not in CROP_MODES:
+        raise ValueError(f"crop: expected one of {CROP_MODES}, got {mode!r}")
     if det.tile is None or mode == "box":
         return extract_crop(upright, det.box)
-    view = outline_view(det.tile.centre_ray(), det.tile.outline_rays(), size=128, margin=0.1)
+    view = outline_view(det.tile.centre_ray(), region_boundary(det, 9), size=128, margin=0.1)
     return equirect_to_perspective(upright, view), view
 
 
 def _poses(upright: np.ndarray, dets: list, prog: Progress, crop_mode: str = "tile") -> list:
     """Per detection: (model, yaw in the upright frame or None, E_o table over 72 world-yaw bins or None,
     the pose estimate, the crop's ray), or None without a pose."""
-    if crop_mode not in ("tile", "box"):
-        raise ValueError(f"crop: expected 'tile' or 'box', got {crop_mode!r}")
     from posecrf.library import builtin_library
     from posecrf.pose import estimate_poses
     from posecrf.render import PoseGrid, RenderSettings

@@ -49,9 +49,7 @@ def _centre_rule(groups):
             near = [m for m in whole if m.score >= best - 0.1]
 
             def off_axis(m):
-                b = m.tile.box
-                r = m.tile.view.pixel_to_ray(np.array([0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])]))
-                return float(np.arccos(np.clip(r @ m.tile.view.direction, -1.0, 1.0)))
+                return float(np.arccos(np.clip(m.tile.centre_ray() @ m.tile.view.direction, -1.0, 1.0)))
 
             rep = min(near, key=off_axis)
             merged = replace(rep, score=merged.score, support=merged.support)

@@ -195,27 +195,12 @@ class TileBox:
         u0, v0, u1, v1 = (float(x) for x in self.box)
         edges = np.array([[u0, v1, u0, v0], [u0, v0, u1, v0], [u1, v0, u1, v1], [u1, v1, u0, v1]])
         _, _, n = segment_to_arc(edges, self.view)
-        centre = self.view.pixel_to_ray(np.array([0.5 * (u0 + u1), 0.5 * (v0 + v1)]))
-        return n * np.where(n @ centre < 0, -1.0, 1.0)[:, None]
-
-    def outline_rays(self, samples_per_edge: int = 8) -> NDArray[np.float64]:
-        """Rays along the box's outline, ``samples_per_edge + 1`` per edge, in the panorama frame of ``view``.
-
-        Returns
-        -------
-        (4 * (samples_per_edge + 1), 3) float
-            Unit rays; with :meth:`centre_ray`, what a crop of just this box needs
-            (``posecrf.crops.outline_view``).
-        """
-        u0, v0, u1, v1 = (float(x) for x in self.box)
-        t = np.linspace(0.0, 1.0, int(samples_per_edge) + 1)
-        us, vs = u0 + t * (u1 - u0), v0 + t * (v1 - v0)
-        px = np.concatenate([np.stack([us, np.full_like(us, v0)], 1), np.stack([us, np.full_like(us, v1)], 1),
-                             np.stack([np.full_like(vs, u0), vs], 1), np.stack([np.full_like(vs, u1), vs], 1)])
-        return self.view.pixel_to_ray(px)
+        return n * np.where(n @ self.centre_ray() < 0, -1.0, 1.0)[:, None]
 
     def centre_ray(self) -> NDArray[np.float64]:
-        """Unit ray through the box centre, in the panorama frame of ``view``: (3,) float."""
+        """Unit ray through the box centre, in the panorama frame of ``view``: (3,) float. With
+        ``detect.nms.region_boundary`` (the outline), what a crop of just this box needs
+        (``posecrf.crops.outline_view``)."""
         u0, v0, u1, v1 = (float(x) for x in self.box)
         return self.view.pixel_to_ray(np.array([0.5 * (u0 + u1), 0.5 * (v0 + v1)]))
 

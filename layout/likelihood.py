@@ -74,7 +74,7 @@ from typing import Callable, Literal, Sequence, Union
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from panogeom.coords import lonlat_to_pixel, pixel_to_ray, xy_to_lon
+from panogeom.coords import lonlat_to_pixel, pixel_grid_rays, xy_to_lon
 
 from .labelmap import (
     CEILING,
@@ -178,8 +178,7 @@ def _box_masks(boxes: ArrayLike | None, width: int, box_width: float | None,
             if n.shape != (4, 3) or not np.all(np.isfinite(n)):
                 raise ValueError(f"planes[{k}]: expected a finite (4, 3) array of plane normals, got shape {n.shape}")
             if rays is None:
-                uu, vv = np.meshgrid(u, v)
-                rays = pixel_to_ray(np.stack([uu, vv], -1), w, h)
+                rays = pixel_grid_rays(w, h)
             out[k] &= np.all(rays @ n.T >= 0.0, axis=-1)
     return out
 

@@ -229,10 +229,6 @@ def crop_view(box: ArrayLike, width: int, height: int, size: int = 128, margin: 
     PinholeView
     """
     b, u0, u1 = _pano_box(box, width, height)
-    if int(size) != size or size < 8:
-        raise ValueError(f"size: expected an integer >= 8 pixels, got {size!r}")
-    if not (math.isfinite(margin) and margin >= 0):
-        raise ValueError(f"margin: expected a fraction >= 0, got {margin!r}")
     centre = pano_box_ray(box, width, height)
     t = np.linspace(0.0, 1.0, int(samples_per_edge) + 1)
     us = u0 + t * (u1 - u0)
@@ -243,7 +239,9 @@ def crop_view(box: ArrayLike, width: int, height: int, size: int = 128, margin: 
     ])
     try:
         return outline_view(centre, pixel_to_ray(outline, width, height), size, margin)
-    except ValueError:
+    except ValueError as exc:
+        if not str(exc).startswith("outline"):
+            raise  # size or margin
         raise ValueError(f"box: expected a box narrower than 180 degrees that fits a perspective view, "
                          f"got {b.tolist()}") from None
 

@@ -8,15 +8,16 @@ import numpy as np
 import pytest
 
 from detect.detection import Detection, TileBox
+from detect.nms import region_boundary
 from panogeom.coords import ray_to_pixel
 from panogeom.perspective import PinholeView
-from apps.pipeline import object_crop
+from apps.pipeline import RunOptions, object_crop
 
 
 def _detection(W: int = 1024, H: int = 512) -> Detection:
     tile = PinholeView(yaw=0.9, pitch=-0.7, roll=0.0, fov=math.radians(90.0), width=416, height=416)
     tb = TileBox(tile, [140.0, 190.0, 290.0, 320.0])
-    pp = ray_to_pixel(tb.outline_rays(16), W, H)
+    pp = ray_to_pixel(region_boundary(Detection("chair", 0.9, [0.0, 1.0, 10.0, 2.0], W, H, tile=tb), 16), W, H)
     box = [pp[:, 0].min(), pp[:, 1].min(), pp[:, 0].max(), pp[:, 1].max()]
     return Detection("chair", 0.9, box, W, H, tile=tb)
 
@@ -27,7 +28,7 @@ def test_the_tile_crop_holds_the_tile_box_and_is_tighter_than_the_panorama_box()
     crop, view = object_crop(pano, det, "tile")
     crop_b, view_b = object_crop(pano, det, "box")
     assert crop.shape[1] == crop_b.shape[1] == 128 and crop.dtype == np.uint8
-    uv, front = view.ray_to_pixel(det.tile.outline_rays())
+    uv, front = view.ray_to_pixel(region_boundary(det, 16))
     assert front.all() and uv.min() >= -1e-6 and uv[:, 0].max() <= view.width + 1e-6
     assert view.fov < view_b.fov - math.radians(3.0)
     # without a tile both modes crop the panorama box
@@ -36,3 +37,9 @@ def test_the_tile_crop_holds_the_tile_box_and_is_tighter_than_the_panorama_box()
     with pytest.raises(ValueError, match="crop"):
         object_crop(pano, det, "mask")
 
+
+
+def test_run_options_refuse_an_unknown_crop_mode():
+    assert RunOptions().crop == "tile" and RunOptions(crop="box").crop == "box"
+    with pytest.raises(ValueError, match="crop"):
+        RunOptions(crop="mask")

@@ -113,13 +113,15 @@ def test_tile_box_edge_planes_bound_the_box_on_the_sphere():
     assert TileBox(view, [0.5, 30.0, 200.0, 239.0]).border_edges().tolist() == [True, False, False, True]
 
 
-def test_tile_box_outline_rays_lie_on_its_edge_planes():
-    from detect.detection import TileBox
+def test_a_tile_boxs_region_boundary_lies_on_its_edge_planes_around_its_centre_ray():
+    from detect.detection import Detection, TileBox
+    from detect.nms import region_boundary
     from panogeom.perspective import PinholeView
 
     view = PinholeView(yaw=-2.0, pitch=-0.5, roll=0.0, fov=np.pi / 2, width=320, height=240)
     tb = TileBox(view, [40.0, 30.0, 200.0, 180.0])
-    rays = tb.outline_rays(samples_per_edge=4)
+    np.testing.assert_allclose(tb.centre_ray(), view.pixel_to_ray(np.array([120.0, 105.0])), atol=1e-12)
+    rays = region_boundary(Detection("bed", 0.9, [100.0, 300.0, 300.0, 400.0], 1024, 512, tile=tb), 5)
     assert rays.shape == (20, 3) and np.allclose(np.linalg.norm(rays, axis=1), 1.0)
     d = rays @ tb.edge_planes().T
     assert np.allclose(d.min(axis=1), 0.0, atol=1e-9) and np.all(d > -1e-9)  # each on one plane, inside the rest

@@ -355,8 +355,9 @@ def test_a_given_scale_starts_the_improved_scheme_at_the_box_fit():
         res = map_estimate(lik, dets, image_width=W, image_height=W // 2, config=fixed, rng=0)
         got = np.array([o.center[:2] for o in res.initial.objects])
         errs[cfg.mode] = np.hypot(*(got - truth).T)
-    init = initialise_objects(dets, W, W // 2).centers[:, :2]
-    fitted = fit_boxes(dets, initialise_objects(dets, W, W // 2).centers, W, W // 2, camera_height=1.6)[0][:, :2]
+    centers = initialise_objects(dets, W, W // 2).centers
+    init = centers[:, :2]
+    fitted = fit_boxes(dets, centers, W, W // 2, camera_height=1.6)[0][:, :2]
     assert np.allclose(errs["paper"], np.hypot(*(init - truth).T), atol=1e-9)
     assert np.allclose(errs["improved"], np.hypot(*(fitted - truth).T), atol=1e-9)
     assert errs["improved"].mean() < errs["paper"].mean()
