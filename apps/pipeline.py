@@ -19,7 +19,9 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
    each object's model among its class's and its wall-aligned yaw, with the
    camera height they share, from how well they fit the detection boxes
    (:func:`layout.modelfit.select_models`; box edges cut by a nearer
-   object or a tile border left out, tile boxes as great-circle edges)
+   object or a tile border left out, tile boxes as great-circle edges),
+   and from how far each candidate's footprint would reach through the
+   walls of the room of step 5
 8. initial objects -> MAP sampling of scale, positions and yaws under E_s,
    E_o and the context prior (:mod:`layout.sampler`)
 
@@ -69,7 +71,8 @@ class RunOptions:
         ``"improved"`` (default) or ``"paper"`` (the paper's exact scheme).
     model_choice : str
         ``"box"`` (default): each object's model among its class's by how well it fits its box at the shared
-        camera height, with the HOG distance as appearance cost (:func:`layout.modelfit.select_models`);
+        camera height, with the HOG distance as appearance cost and the room's walls as a soft limit
+        (:func:`layout.modelfit.select_models`);
         ``"appearance"``: the model of the nearest HOG render (the paper).
     crop : str
         The pose CRF's crop of a detection (:func:`object_crop`): ``"tile"`` (default) the region its tile box
@@ -383,7 +386,7 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
     if objects and options.model_choice == "box":
         with prog.stage("models", "model choice by box fit"):
             choice = select_models([a[0] for a in alternatives], W, H, appearance=[a[1] for a in alternatives],
-                                   camera_height=options.camera_height)
+                                   camera_height=options.camera_height, floor=geom.floor, floor_camera_height=h0)
             changed = 0
             for k, j in enumerate(choice.index):
                 alt, _, lib_models, est, ray = alternatives[k]

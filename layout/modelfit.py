@@ -31,6 +31,15 @@ occluders, false detections); each object then takes its best model
 at that height. The grid of heights is refined twice around each of its
 lowest local minima.
 
+Given the room's floor polygon (``select_models(floor=...)``, the room step's
+polygon up to scale), each candidate also pays ``w_r rho(depth / sigma_r)``,
+``depth`` being how far its footprint, fitted to its box at ``H``, reaches
+through the walls of the floor scaled to ``H`` (:func:`room_misfit`): a
+model too large or a yaw 90 degrees off (the HOG pose's side view) that the
+box alone cannot rule out often puts the object through a wall, which the
+sampler's hard constraint would otherwise resolve by pulling the object
+towards the camera.
+
 Convention:
     World frame of shared/CONVENTIONS.md (metres, z up, camera at
     ``(0, 0, H)``); boxes in pixels of the upright panorama the objects
@@ -48,10 +57,11 @@ from numpy.typing import ArrayLike, NDArray
 
 from panogeom.coords import pixel_to_lonlat
 
+from .polygon import distance_to_boundary, oriented_rectangles, points_in_polygon
 from .sampler import DetectedObject, _BoxEdges, _fit_edges, initialise_objects
 
-__all__ = ["ModelChoice", "select_models", "candidate_yaws", "occluded_edges", "DEFAULT_EDGE_SIGMA", "DEFAULT_APPEARANCE_WEIGHT",
-           "DEFAULT_HEIGHT_PRIOR"]
+__all__ = ["ModelChoice", "select_models", "candidate_yaws", "occluded_edges", "room_misfit", "DEFAULT_EDGE_SIGMA",
+           "DEFAULT_APPEARANCE_WEIGHT", "DEFAULT_HEIGHT_PRIOR", "DEFAULT_ROOM_WEIGHT", "DEFAULT_ROOM_SIGMA"]
 
 FloatArray = NDArray[np.float64]
 
@@ -66,6 +76,9 @@ _KEEP = 8  # candidates per object fitted on the finer grids
 _BASINS = 3  # local minima of the first grid refined by the finer ones
 #: Weight of the caller's appearance cost against the box misfit (units of one edge's robust cost).
 DEFAULT_APPEARANCE_WEIGHT: float = 1.0
+#: Weight of the room term (a footprint through a wall; units of one edge's robust cost) and its depth scale, m.
+DEFAULT_ROOM_WEIGHT: float = 1.0
+DEFAULT_ROOM_SIGMA: float = 0.2
 
 
 @dataclass(frozen=True)
@@ -222,17 +235,57 @@ def _check(candidates: Sequence[Sequence[DetectedObject]], appearance: Sequence[
 
 
 def _misfit(edges: _BoxEdges, yaw: FloatArray, centers: FloatArray, free_h: FloatArray, cam_h: float,
-            sigma: float) -> FloatArray:
-    """Robust box misfit of every flattened candidate at camera height ``cam_h``: (F,).
+            sigma: float) -> tuple[FloatArray, FloatArray]:
+    """Robust box misfit of every flattened candidate at camera height ``cam_h``: (F,), and the fitted
+    floor positions (F, 2).
 
     The fit starts from the free-height fit (``centers`` at ``free_h``) scaled to ``cam_h``, which is exact
     for a scaled model and close otherwise, so a few Levenberg-Marquardt steps suffice."""
     start = centers.copy()
     start[:, :2] *= (cam_h / free_h)[:, None]
-    _, _, resid = _fit_edges(edges, yaw, start, cam_h, cam_h, iterations=8)
+    fitted, _, resid = _fit_edges(edges, yaw, start, cam_h, cam_h, iterations=8)
     r = resid / sigma
     rho = r * r / (1.0 + r * r)
-    return np.where(np.isfinite(rho), rho, 1.0).sum(axis=1)
+    return np.where(np.isfinite(rho), rho, 1.0).sum(axis=1), fitted[:, :2]
+
+
+def room_misfit(xy: ArrayLike, yaw: ArrayLike, size2: ArrayLike, floor: ArrayLike, sigma: float) -> FloatArray:
+    """Robust cost of footprints reaching through the walls: ``rho(depth / sigma)``, (F,).
+
+    Parameters
+    ----------
+    xy : (F, 2) float
+        Footprint centres, metres.
+    yaw : (F,) float
+        Radians.
+    size2 : (F, 2) float
+        Footprint length and width, metres.
+    floor : (K, 2) float
+        Floor polygon at the same scale.
+    sigma : float
+        Depth scale, metres.
+
+    Returns
+    -------
+    (F,) float
+        In [0, 1): 0 for a footprint inside the floor, ``depth`` being the
+        largest distance of a corner outside it from the boundary.
+
+    Examples
+    --------
+    >>> room = [[-2.0, -2.0], [2.0, -2.0], [2.0, 2.0], [-2.0, 2.0]]
+    >>> room_misfit([[0.0, 0.0], [1.7, 0.0]], [0.0, 0.0], [[1.0, 1.0], [1.0, 1.0]], room, 0.2).round(2).tolist()
+    [0.0, 0.5]
+    """
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    rect = oriented_rectangles(xy, np.asarray(yaw, dtype=np.float64).reshape(-1),
+                               np.asarray(size2, dtype=np.float64).reshape(-1, 2))  # (F, 4, 2)
+    out = ~points_in_polygon(rect, floor)
+    depth = np.zeros(out.shape)
+    if out.any():
+        depth[out] = distance_to_boundary(rect[out], floor)
+    x = depth.max(axis=1) / float(sigma)
+    return x * x / (1.0 + x * x)
 
 
 def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, height: int, *,
@@ -240,7 +293,9 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
                   height_range: tuple[float, float] = (0.8, 2.6), n_heights: int = 19, levels: int = 3,
                   height_prior: tuple[float, float] | None = DEFAULT_HEIGHT_PRIOR,
                   edge_sigma: float | None = None,
-                  appearance_weight: float | None = None) -> ModelChoice:
+                  appearance_weight: float | None = None,
+                  floor: ArrayLike | None = None, floor_camera_height: float | None = None,
+                  room_weight: float | None = None, room_sigma: float | None = None) -> ModelChoice:
     """Choose each object's model by how well it fits its box at one shared camera height.
 
     Parameters
@@ -273,6 +328,16 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         Scale of the edge misfit, radians (default :data:`DEFAULT_EDGE_SIGMA`).
     appearance_weight : float, optional
         ``w_a`` of the module docstring (default :data:`DEFAULT_APPEARANCE_WEIGHT`).
+    floor : (K, 2) float, optional
+        The room's floor polygon at camera height ``floor_camera_height``
+        (the room step's, up to scale): each candidate then also pays
+        ``w_r`` :func:`room_misfit` of its footprint, fitted to its box at
+        each height ``H``, against the floor scaled to ``H``.
+    floor_camera_height : float, optional
+        Required with ``floor``, metres.
+    room_weight, room_sigma : float, optional
+        ``w_r`` and the depth scale of the room term (defaults
+        :data:`DEFAULT_ROOM_WEIGHT`, :data:`DEFAULT_ROOM_SIGMA` m).
 
     Returns
     -------
@@ -314,6 +379,18 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         raise ValueError(f"height_prior: expected (median metres > 0, sigma > 0) or None, got {height_prior!r}")
     if int(levels) < 1:
         raise ValueError(f"levels: expected 1 or more, got {levels!r}")
+    room_weight = DEFAULT_ROOM_WEIGHT if room_weight is None else float(room_weight)
+    room_sigma = DEFAULT_ROOM_SIGMA if room_sigma is None else float(room_sigma)
+    if not (math.isfinite(room_weight) and room_weight >= 0):
+        raise ValueError(f"room_weight: expected a finite weight >= 0, got {room_weight!r}")
+    if not (math.isfinite(room_sigma) and room_sigma > 0):
+        raise ValueError(f"room_sigma: expected metres > 0, got {room_sigma!r}")
+    if floor is not None:
+        floor = np.asarray(floor, dtype=np.float64)
+        if floor.ndim != 2 or floor.shape[1] != 2 or len(floor) < 3 or not np.isfinite(floor).all():
+            raise ValueError(f"floor: expected a (K >= 3, 2) finite polygon, got shape {floor.shape}")
+        if floor_camera_height is None or not (math.isfinite(floor_camera_height) and floor_camera_height > 0):
+            raise ValueError(f"floor_camera_height: expected metres > 0 with a floor, got {floor_camera_height!r}")
     levels = int(levels)
 
     flat = [o for c in cands for o in c]
@@ -324,6 +401,8 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
     free_h = init.fitted_camera_heights
     free_h = np.where(np.isfinite(free_h) & (free_h > 0), free_h, np.median(np.r_[free_h[free_h > 0], 1.6]))
     yaw_flat = np.array([o.yaw for o in flat])
+    size2_flat = np.array([o.size[:2] for o in flat], dtype=np.float64).reshape(-1, 2)
+    use_room = floor is not None and room_weight > 0
     a_flat = np.concatenate([a - a.min() for a in app]) * float(appearance_weight)
 
     def prior(hk: float) -> float:
@@ -336,8 +415,11 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         prof, costs = np.zeros(len(hs)), []
         for k, hk in enumerate(hs):
             cost = np.full((n, m_max), np.inf)
-            cost[owner[sel], slot[sel]] = _misfit(edges, yaw_flat[sel], centers[sel], free_h[sel], float(hk),
-                                                  edge_sigma) + a_flat[sel]
+            fit, xy = _misfit(edges, yaw_flat[sel], centers[sel], free_h[sel], float(hk), edge_sigma)
+            if use_room:
+                fit = fit + room_weight * room_misfit(xy, yaw_flat[sel], size2_flat[sel],
+                                                      floor * (float(hk) / float(floor_camera_height)), room_sigma)
+            cost[owner[sel], slot[sel]] = fit + a_flat[sel]
             prof[k] = cost.min(axis=1).sum() + prior(float(hk))
             costs.append(cost)
         return prof, costs
