@@ -839,9 +839,9 @@ class SamplerConfig:
         least half the length) turn it by +90 and -90 degrees, its
         position fitted again to its box at the new yaw and the current
         camera height (:func:`fit_boxes`; not in the paper), and also 3 and
-        6 % nearer the camera. A HOG pose
-        often gives an object's side view; the box fit of the model choice
-        cannot always tell the two apart, the room evidence may.
+        6 % nearer the camera. A HOG pose often gives an object's side view;
+        the box fit of the model choice cannot always tell the two apart,
+        the room evidence may.
     initial_camera_height : float or None
         Used when ``initial_wall_height`` is None: the camera height of the
         initial hypothesis, metres (e.g. the shared height of
@@ -914,8 +914,8 @@ class SamplerConfig:
     @classmethod
     def improved(cls, **overrides: object) -> "SamplerConfig":
         """The improved scheme (module docstring): scale fitted to the boxes and kept (``sample_scale=False``),
-        coordinate-wise annealed moves with flips, ``surface_weight=100``, ``keep_in_box=True``; ``overrides`` replace
-        any of these."""
+        coordinate-wise annealed moves with flips and quarter turns, ``surface_weight=100``, ``keep_in_box=True``;
+        ``overrides`` replace any of these."""
         opts: dict[str, object] = {"mode": "improved", "initial_wall_height": None, "surface_weight": 100.0,
                                    "keep_in_box": True, "sample_scale": False, "flip_moves": True,
                                    "quarter_moves": True}
