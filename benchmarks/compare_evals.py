@@ -13,6 +13,10 @@ each run's eval.json): mean position and orientation error with the context term
 object, the share of orientations more than 45 degrees off, matched / ground-truth objects, mean wall-height error,
 mean absolute camera-height error and mean layout 3D IoU over the rooms. The variants must have run on the same
 rooms (checked: the same room names per set).
+
+``--changed CLASS`` also prints (not into the docs) the rooms where the matched objects of CLASS differ between
+the first two variants: their position errors (cm) and orientation errors (deg) in each, rooms ordered by how
+much the summed position error grew.
 """
 
 from __future__ import annotations
@@ -89,6 +93,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--heading", default="## Variants of the pipeline compared (compare_evals.py)",
                     help="the docs section ('## ...') the table goes to")
     ap.add_argument("--note", default="", help="a line written under the command in the docs section")
+    ap.add_argument("--changed", metavar="CLASS", help="print the rooms where CLASS differs between the first two "
+                                                        "variants")
     args = ap.parse_args(argv)
     variants, rooms = {}, None
     for spec in args.variants:
@@ -108,7 +114,34 @@ def main(argv: list[str] | None = None) -> int:
     lines = [args.heading, "", cmd, ""] + ([args.note, ""] if args.note else [])
     lines += [f"{len(rooms)} rooms per variant.", ""] + table(variants)
     publish(lines, args.update_docs, EVALUATION_MD, args.heading)
+    if args.changed:
+        if len(args.variants) < 2:
+            raise SystemExit("--changed: expected two variants or more")
+        print("\n".join(changed_rooms(*[[Path(p) for p in v.partition("=")[2].split(",")] for v in args.variants[:2]],
+                                       args.changed)))
     return 0
+
+
+def changed_rooms(first: list[Path], second: list[Path], cls: str) -> list[str]:
+    """Lines ``room: pos [cm...] -> [cm...], orient [deg...] -> [deg...]`` where ``cls`` differs (``--changed``)."""
+    def per_room(runs: list[Path]) -> dict[str, dict]:
+        out = {}
+        for run in runs:
+            for r in json.loads((run / "eval.json").read_text())["rooms"]:
+                out[f"{run.name}/{r['name']}"] = (r.get("objects") or {}).get(cls, {})
+        return out
+
+    a, b = per_room(first), per_room(second)
+    rows = []
+    for (name, x), y in zip(a.items(), b.values()):
+        pa, pb = x.get("pos", []), y.get("pos", [])
+        oa, ob = x.get("orient", []), y.get("orient", [])
+        if pa != pb or oa != ob:
+            rows.append((sum(pb) - sum(pa), f"{name}: position {[round(100 * v) for v in pa]} -> "
+                         f"{[round(100 * v) for v in pb]} cm, orientation {[round(v) for v in oa]} -> "
+                         f"{[round(v) for v in ob]} deg"))
+    return [f"{len(rows)} rooms where {cls} differs, by growth of the summed position error:"] + \
+        [line for _, line in sorted(rows, key=lambda t: -t[0])]
 
 
 if __name__ == "__main__":

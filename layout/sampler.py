@@ -1039,14 +1039,18 @@ class _Problem:
         left, right = _box_lon(objects, image_width, image_height)
         self.box_mid = 0.5 * (left + right)
         self.box_half = np.where(right - left < np.pi, 0.5 * (right - left), np.inf)  # no limit for huge boxes
-        self.edges = _BoxEdges(objects, image_width, image_height) if self.n and cfg.box_weight > 0 else None
-        self.fit_edges = _BoxEdges(objects, image_width, image_height) if self.n and cfg.quarter_moves else None
+        # objects the quarter turns may turn: asymmetric, not thin
+        self.turnable = np.flatnonzero((self.weights > 0)
+                                       & (self.size2.min(axis=1) >= _QUARTER_ASPECT * self.size2.max(axis=1)))
+        # the box edges, for the box term and the quarter turns' refits
+        need_edges = self.n and (cfg.box_weight > 0 or cfg.quarter_moves)
+        self.edges = _BoxEdges(objects, image_width, image_height) if need_edges else None
 
     def refit(self, lam: float, xy: FloatArray, yaw: FloatArray) -> FloatArray:
         """Floor positions (N, 2) of the objects at yaws ``yaw`` (N,) fitted to their boxes at scale ``lam``,
         starting from ``xy`` (N, 2)."""
         start = np.column_stack([xy, self.z])
-        return _fit_edges(self.fit_edges, yaw, start, lam * self.h0, lam * self.h0, iterations=10)[0][:, :2]
+        return _fit_edges(self.edges, yaw, start, lam * self.h0, lam * self.h0, iterations=10)[0][:, :2]
 
     def box_energy(self, lam: FloatArray, xy: FloatArray, yaw: FloatArray) -> FloatArray:
         """``E_b`` (B,): robust misfit of the objects' predicted box edges to their detection boxes."""
@@ -1436,10 +1440,10 @@ def _improved_epoch(prob: _Problem, st: _State, shrink: float, g: np.random.Gene
         f = jj[prob.weights > 0]
         xy_s[f, 0, f] = st.xy[f]
         yaw_s[f, 0, f] = st.yaw[f] + np.pi
-    if cfg.quarter_moves and s > 2 * len(_QUARTER_PULL):
-        # proposals 1-6: turned by +-90 degrees, refitted to the box, and pulled 0 / 3 / 6 % towards the camera
-        # (a refit footprint flush against a wall may cut it by a centimetre)
-        f = jj[(prob.weights > 0) & (prob.size2.min(axis=1) >= _QUARTER_ASPECT * prob.size2.max(axis=1))]
+    # proposals 1-6: turned by +-90 degrees, refitted to the box, and pulled 0 / 3 / 6 % towards the camera
+    # (a refit footprint flush against a wall may cut it by a centimetre)
+    f = prob.turnable
+    if cfg.quarter_moves and s > 2 * len(_QUARTER_PULL) and f.size:
         k = 1
         for turn in (0.5 * np.pi, -0.5 * np.pi):
             xy_q = prob.refit(st.lam, st.xy, st.yaw + turn)
