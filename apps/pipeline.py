@@ -356,8 +356,10 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
         model, yaw, e_o, est, ray = p
 
         # a tile detection's edges are great circles (planes through the camera); one at the tile border is not
-        # the object's own edge
-        planes = d.tile.edge_planes() if d.tile is not None else None
+        # the object's own edge; an object other tiles also see whole brings their edges too (each edge's fit
+        # takes the median over the views)
+        planes = None if d.tile is None else \
+            np.stack([t.edge_planes() for t in d.views]) if d.views else d.tile.edge_planes()
         if d.tile is not None:
             c = c | d.tile.border_edges()
 
@@ -412,7 +414,7 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
         def sample(objs: list, tables: list, cfg):
             boxes = np.array([o.bbox_pano for o in objs]) if objs else None
             # each box's object evidence: the region its tile box bounds, not the looser panorama box
-            planes = [o.edge_planes for o in objs] if objs else None
+            planes = [o.region_planes for o in objs] if objs else None
             obs = observe_labels(surf.labels, boxes, object_pixels="matched" if objs else "masked", box_planes=planes)
             es = surface_likelihood(obs, geom.floor, geom.ceiling_z, h0)
             return map_estimate(es, objs, image_width=W, image_height=H, orientation=tables or None,

@@ -12,6 +12,8 @@ panorama-box IoU > 0.5 with its gt box), the four box edges are compared with th
 * as great circles (planes through the camera; :meth:`detect.detection.TileBox.edge_planes`): the angle by which
   the outline's extreme point lies inside each plane (0: the box edge touches the object); edges at the tile
   border are left out;
+* the same, each edge the median over the tiles that see the object whole (``Detection.views``, what the
+  pipeline's box fits use; objects seen whole by one tile only keep that tile's edges);
 * as the panorama box (lon/lat extent, ``Detection.box``): predicted minus detected edge angle.
 
 Printed per class and overall: median and median absolute deviation (MAD) per edge (left, top, right, bottom),
@@ -47,7 +49,8 @@ def measure(data: Path, rooms: int, min_visible: int = 2000) -> dict[str, dict[s
     outlines: dict[str, np.ndarray] = {}
     det = get_detector("builtin")
     views = det.views()
-    out: dict[str, dict[str, list]] = {"planes": defaultdict(list), "pano box": defaultdict(list)}
+    out: dict[str, dict[str, list]] = {m: defaultdict(list) for m in ("planes", "planes, median of views",
+                                                                         "pano box")}
     for room in sorted(p for p in data.iterdir() if (p / "gt.json").is_file())[:rooms]:
         gt = json.loads((room / "gt.json").read_text())
         img = np.array(Image.open(room / gt["image"].get("file", "pano.png")).convert("RGB"))
@@ -68,7 +71,9 @@ def measure(data: Path, rooms: int, min_visible: int = 2000) -> dict[str, dict[s
                 outlines[o["model"]] = hull_outline(lib[o["model"]].vertices)
             yaw = np.radians(o["yaw_deg"])
             xy = np.array(o["center"], float)[None, None, :2]
-            for mode, planes in (("planes", d.tile.edge_planes()), ("pano box", None)):
+            sets = np.stack([t.edge_planes() for t in d.views]) if d.views else d.tile.edge_planes()
+            for mode, planes in (("planes", d.tile.edge_planes()), ("planes, median of views", sets),
+                                 ("pano box", None)):
                 obj = DetectedObject(o["class"], d.box, o["size"], yaw, outline=outlines[o["model"]],
                                      edge_planes=planes)
                 r = np.degrees(_BoxEdges([obj], W, H).residual(xy, np.array([[yaw]]), np.array([[cam]]))[0, 0])

@@ -237,6 +237,13 @@ class Detection:
         lon/lat rectangle ``box``.
     support : int
         Number of raw tile detections merged into this one by NMS.
+    views : tuple of TileBox
+        The object seen whole (not cut by the tile border) by other tiles
+        too: the tile boxes of the merged members that do, ``tile`` first,
+        filled by :func:`detect.nms.merge_sphere`; empty for a single view.
+        Each tile's box edges are off by about a degree, partly
+        independently: the box fits of :mod:`layout` take each edge's median
+        over these views.
 
     Convention: see the module docstring; ``bbox_pano`` in scene.json is
     ``box`` (``u0 > u1`` wraps).
@@ -256,6 +263,7 @@ class Detection:
     mask: NDArray[np.bool_] | None = field(default=None, repr=False)
     tile: TileBox | None = None
     support: int = 1
+    views: tuple[TileBox, ...] = field(default=(), repr=False)
 
     def __post_init__(self) -> None:
         check_label(self.label)
@@ -281,6 +289,10 @@ class Detection:
             object.__setattr__(self, "mask", m)
         if int(self.support) != self.support or self.support < 1:
             raise ValueError(f"support: expected a positive integer, got {self.support!r}")
+        views = tuple(self.views)
+        if not all(isinstance(v, TileBox) for v in views):
+            raise ValueError("views: expected a tuple of TileBox")
+        object.__setattr__(self, "views", views)
 
     @property
     def wraps(self) -> bool:

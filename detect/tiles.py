@@ -15,7 +15,9 @@ Steps of :func:`detect_panorama`:
    :func:`~panogeom.perspective.box_to_pano` (seam- and pole-aware extent),
    keeping the tile and box so the object's region on the sphere is exact;
 4. merge the same object seen from several tiles with
-   :func:`~detect.nms.merge_sphere`, class-aware;
+   :func:`~detect.nms.merge_sphere`, class-aware; each merged detection
+   keeps the boxes of the tiles that see it whole (``Detection.views``),
+   whose edges the box fits of :mod:`layout` take the median of;
 5. score each merged object by the *tile consensus*
    (:func:`tile_consensus`): its best score blended with the mean, over the
    tiles that see the object whole, of each tile's best score for it (0 where

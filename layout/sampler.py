@@ -185,7 +185,10 @@ class DetectedObject:
         turned or pitched. Given (with an ``outline``), the box fits measure
         each edge as ``asin`` of the smallest ``n . ray`` over the outline
         points (0 where the object touches the edge) instead of comparing
-        the outline's lon/lat extent with ``bbox_pano``.
+        the outline's lon/lat extent with ``bbox_pano``. ``(K, 4, 3)``: the
+        object seen whole in K tiles (``detect.Detection.views``), the
+        detection's own first; each edge's residual is then the median of
+        its K residuals. :attr:`region_planes` is the first set.
     """
 
     cls: str
@@ -200,6 +203,13 @@ class DetectedObject:
     outline: FloatArray | None = field(default=None, repr=False)
     edge_weights: FloatArray | None = field(default=None, repr=False)
     edge_planes: FloatArray | None = field(default=None, repr=False)
+
+    @property
+    def region_planes(self) -> FloatArray | None:
+        """(4, 3) edge planes of the detection's own tile box (the first of ``edge_planes``), or None."""
+        if self.edge_planes is None:
+            return None
+        return self.edge_planes if self.edge_planes.ndim == 2 else self.edge_planes[0]
 
     def __post_init__(self) -> None:
         if not isinstance(self.cls, str) or not self.cls:
@@ -231,9 +241,10 @@ class DetectedObject:
             object.__setattr__(self, "edge_weights", ew)
         if self.edge_planes is not None:
             ep = np.array(self.edge_planes, dtype=np.float64)
-            if ep.shape != (4, 3) or not np.all(np.isfinite(ep)) or \
-                    not np.allclose(np.linalg.norm(ep, axis=1), 1.0, atol=1e-6):
-                raise ValueError(f"edge_planes: expected (4, 3) unit normals, got {np.shape(self.edge_planes)}")
+            if ep.ndim not in (2, 3) or ep.shape[-2:] != (4, 3) or len(ep) == 0 or not np.all(np.isfinite(ep)) or \
+                    not np.allclose(np.linalg.norm(ep, axis=-1), 1.0, atol=1e-6):
+                raise ValueError(f"edge_planes: expected (4, 3) or (K, 4, 3) unit normals, got "
+                                 f"{np.shape(self.edge_planes)}")
             if self.outline is None:
                 raise ValueError("edge_planes: expected an outline with them (the plane fit needs the model's points)")
             ep.setflags(write=False)
@@ -506,8 +517,13 @@ class _BoxEdges:
             if m else np.zeros((0, 0, 3))
         # objects with edge planes (all of them have an outline), as a mask over the outline objects
         self.planar = np.array([o.edge_planes is not None for o in objects if o.outline is not None], dtype=bool)
-        self.planes = np.stack([o.edge_planes for o in objects if o.edge_planes is not None]) \
-            if self.planar.any() else np.zeros((0, 4, 3))
+        # (P, K, 4, 3) plane sets, padded to the most views; the edge residual is the median over the views
+        sets = [o.edge_planes.reshape(-1, 4, 3) for o in objects if o.edge_planes is not None]
+        k = max((len(p) for p in sets), default=1)
+        self.planes = np.stack([np.concatenate([p, np.repeat(p[:1], k - len(p), axis=0)]) for p in sets]) \
+            if sets else np.zeros((0, 1, 4, 3))
+        self.views = np.array([len(p) for p in sets], dtype=np.int64)
+        self._planes_t = self.planes.reshape(len(self.planes), k * 4, 3).transpose(0, 2, 1).copy()  # (P, 3, K * 4)
 
     def residual(self, xy: FloatArray, yaw: FloatArray, cam_h: FloatArray) -> FloatArray:
         """Predicted minus detected edge angles, radians, times the edge weights: ``xy (..., N, 2)``,
@@ -546,11 +562,30 @@ class _BoxEdges:
         return np.stack([rel.min(axis=-1), lat.max(axis=-1), rel.max(axis=-1), lat.min(axis=-1)], axis=-1)
 
     def _plane_angles(self, xy: FloatArray, yaw: FloatArray, cam_h: FloatArray) -> FloatArray:
-        """Per edge plane, asin of the smallest ``n . ray / |ray|`` over the outline points: (..., P, 4)."""
+        """Per edge plane, asin of the smallest ``n . ray / |ray|`` over the outline points, the median over
+        each object's views: (..., P, 4)."""
         rays = self._outline_rays(xy, yaw, cam_h, self.planar)  # (..., P, M, 3)
         unit = rays / np.maximum(np.linalg.norm(rays, axis=-1, keepdims=True), 1e-12)
-        dots = np.einsum("...pmk,pek->...pme", unit, self.planes)
-        return np.arcsin(np.clip(dots.min(axis=-2), -1.0, 1.0))
+        p, v = self.planes.shape[:2]
+        dots = (unit @ self._planes_t).min(axis=-2)  # (..., P, V * 4)
+        if v > 1:
+            dots = _median_of_first(dots.reshape(dots.shape[:-1] + (v, 4)), self.views)
+        return np.arcsin(np.clip(dots, -1.0, 1.0))
+
+
+def _median_of_first(a: FloatArray, count: NDArray[np.int64]) -> FloatArray:
+    """Median over axis -2 of ``a (..., P, V, E)`` of the first ``count[p]`` entries of each p: (..., P, E)."""
+    v = a.shape[-2]
+    pad = np.arange(v)[:, None] >= count[:, None, None]  # (P, V, 1): padding, sorted to the end
+    s = np.sort(np.where(pad, np.inf, a), axis=-2)
+    lo = ((count - 1) // 2)[:, None, None]
+    hi = (count // 2)[:, None, None]
+    shape = s.shape[:-2] + (1, s.shape[-1])
+
+    def take(i: NDArray[np.int64]) -> FloatArray:
+        return np.take_along_axis(s, np.broadcast_to(i, shape), axis=-2)[..., 0, :]
+
+    return 0.5 * (take(lo) + take(hi))
 
 
 def box_scale(objects: Sequence[DetectedObject], width: int, height: int, camera_height: float, ceiling_z: float,
@@ -1106,9 +1141,11 @@ class _Problem:
             viol += np.maximum(off - self.box_half, 0.0).sum(axis=-1)
         return viol
 
-    def object_ok(self, lam: FloatArray, xy: FloatArray, yaw: FloatArray) -> NDArray[np.bool_]:
-        """(B, N): footprint inside the room and clear of the camera (pairs not considered)."""
-        size2 = np.broadcast_to(self.size2, xy.shape)
+    def object_ok(self, lam: FloatArray, xy: FloatArray, yaw: FloatArray,
+                  which: int | None = None) -> NDArray[np.bool_]:
+        """(B, N): footprint inside the room and clear of the camera (pairs not considered). With ``which``,
+        ``xy (B, 1, 2)`` and ``yaw (B, 1)`` are that object's alone: (B, 1)."""
+        size2 = np.broadcast_to(self.size2 if which is None else self.size2[[which]], xy.shape)
         rects = oriented_rectangles(xy, yaw, size2) / lam[:, None, None, None]
         inside = convex_in_polygon(rects, self.floor, tol=self.cfg.wall_tol / float(lam.max()))
         near, _ = _rect_distance(xy, yaw, size2)
@@ -1157,7 +1194,7 @@ class _Problem:
                 r = np.maximum(dist[j] + offsets, 0.05)
                 cand = np.broadcast_to(xy, (len(r), self.n, 2)).copy()
                 cand[:, j] = r[:, None] * along[j]
-                fit = self.object_ok(np.full(len(r), lam), cand, np.broadcast_to(yaw, (len(r), self.n)))[:, j]
+                fit = self.object_ok(np.full(len(r), lam), cand[:, [j]], np.full((len(r), 1), yaw[j]), which=j)[:, 0]
                 if np.any(fit):
                     k = int(np.argmax(fit))
                     xy[j], dist[j], changed = cand[k, j], r[k], True
@@ -1174,7 +1211,7 @@ class _Problem:
                 cand[:, j] = xy[j] + da[:, None] * along[j] + dc[:, None] * across
                 yaws = np.broadcast_to(yaw, (len(da), self.n)).copy()
                 yaws[:, j] += dy
-                fit = self.object_ok(np.full(len(da), lam), cand, yaws)[:, j]
+                fit = self.object_ok(np.full(len(da), lam), cand[:, [j]], yaws[:, [j]], which=j)[:, 0]
                 if np.any(fit):
                     k = int(np.argmax(fit))
                     xy[j], yaw[j], changed = cand[k, j], yaws[k, j], True
@@ -1188,7 +1225,7 @@ class _Problem:
                     cand = np.broadcast_to(xy, (len(r), self.n, 2)).copy()
                     cand[:, j] = r[:, None] * along[j]
                     yaws = np.broadcast_to(yaw, (len(r), self.n))
-                    fit = self.object_ok(np.full(len(r), lam), cand, yaws)[:, j]
+                    fit = self.object_ok(np.full(len(r), lam), cand[:, [j]], yaws[:, [j]], which=j)[:, 0]
                     fit &= pair_overlap_areas(cand, yaws, self.size2)[:, a, b] <= self.cfg.overlap_tol
                     if np.any(fit):
                         k = int(np.argmax(fit))

@@ -177,6 +177,32 @@ def test_the_representative_is_the_box_most_tiles_agree_on():
     assert [d.box.tolist() for d in nms_sphere([loose, *tight])] == [merged.box.tolist()]
 
 
+def test_merged_views_are_the_whole_views_that_score_enough_representative_first():
+    views = detection_views(200)
+    obj = _object_at(15, -25, half=25)  # seen whole by views 0, 1 and 12
+    whole = [to_panorama(ImageDetection("chair", s, box_in_view(obj, views[k])), views[k], W, H, index=k)
+             for k, s in ((0, 0.7), (1, 0.65), (12, 0.1))]
+    cut = to_panorama(ImageDetection("chair", 0.9, box_in_view(obj, views[2])).clipped(200, 200), views[2], W, H,
+                      index=2)
+    assert cut.tile.truncated
+    (merged, members), = merge_sphere([*whole, cut])
+    assert len(members) == 4
+    # the truncated view and the one scoring under view_score (0.2) are left out; the representative comes first
+    assert len(merged.views) == 2 and merged.views[0] == merged.tile
+    assert {t.index for t in merged.views} == {0, 1}
+    (low, _), = merge_sphere([*whole, cut], view_score=0.05)
+    assert {t.index for t in low.views} == {0, 1, 12}
+    (one, _), = merge_sphere(whole, max_views=2)
+    assert len(one.views) == 2
+    # a single whole view: no views
+    (alone, _), = merge_sphere([whole[0], cut])
+    assert alone.views == ()
+    with pytest.raises(ValueError, match="max_views"):
+        merge_sphere(whole, max_views=0)
+    with pytest.raises(ValueError, match="view_score"):
+        merge_sphere(whole, view_score=1.5)
+
+
 def test_tile_consensus_ranks_what_most_tiles_find_above_what_one_tile_finds():
     views = detection_views(200)
     obj = _object_at(15, -25, half=25)

@@ -165,13 +165,10 @@ def test_the_height_prior_decides_where_the_boxes_cannot():
         select_models([beds], W, H, height_prior=(0.0, 0.3))
 
 
-def test_edge_planes_of_a_tight_tile_box_are_touched_at_the_truth():
-    """A box drawn tight around an object in a pitched, turned tile: as great circles its edges touch the outline
-    at the true position (residual ~0), and the fit from a wrong start comes back to it."""
-    from detect.detection import TileBox
-    from layout.sampler import _BoxEdges, fit_boxes, hull_outline
-    from panogeom.coords import ray_to_lonlat, lonlat_to_pixel
-    from panogeom.perspective import PinholeView
+def _bed_outline():
+    """A 2.0 x 1.6 x 0.6 m bed at yaw 2 rad, 2.2 m ahead and 1.4 m left of a camera 1.5 m high: its size, yaw,
+    camera height, centre, hull outline (object frame) and the outline's points relative to the camera."""
+    from layout.sampler import hull_outline
 
     size, yaw, cam = np.array([2.0, 1.6, 0.6]), 2.0, 1.5
     center = np.array([2.2, 1.4, 0.3])
@@ -181,6 +178,18 @@ def test_edge_planes_of_a_tight_tile_box_are_touched_at_the_truth():
     c, s = math.cos(yaw), math.sin(yaw)
     world = np.stack([center[0] + c * outline[:, 0] - s * outline[:, 1],
                       center[1] + s * outline[:, 0] + c * outline[:, 1], outline[:, 2] - cam], axis=1)
+    return size, yaw, cam, center, outline, world
+
+
+def test_edge_planes_of_a_tight_tile_box_are_touched_at_the_truth():
+    """A box drawn tight around an object in a pitched, turned tile: as great circles its edges touch the outline
+    at the true position (residual ~0), and the fit from a wrong start comes back to it."""
+    from detect.detection import TileBox
+    from layout.sampler import _BoxEdges, fit_boxes
+    from panogeom.coords import ray_to_lonlat, lonlat_to_pixel
+    from panogeom.perspective import PinholeView
+
+    size, yaw, cam, center, outline, world = _bed_outline()
     lon_c = float(ray_to_lonlat(center[None] - [0, 0, cam])[0, 0])
     view = PinholeView(yaw=lon_c + 0.35, pitch=-0.45, roll=0.0, fov=math.radians(100), width=400, height=400)
     px, ok = view.ray_to_pixel(world)
@@ -195,3 +204,43 @@ def test_edge_planes_of_a_tight_tile_box_are_touched_at_the_truth():
     assert np.hypot(*(got - center[:2])) < 0.01
     with pytest.raises(ValueError, match="edge_planes: expected an outline"):
         DetectedObject("bed", box, size, yaw, edge_planes=tb.edge_planes())
+
+
+def test_edge_residual_of_several_views_is_the_median_of_theirs():
+    """An object seen whole in three tiles, one of them with a box 2 px too wide on every side: each edge's
+    residual is the median of the three tiles' residuals (the two true ones: ~0), and with two views the
+    mean; one plane set given as (1, 4, 3) is the same as (4, 3)."""
+    from detect.detection import TileBox
+    from layout.sampler import _BoxEdges
+    from panogeom.perspective import PinholeView
+
+    size, yaw, cam, center, outline, world = _bed_outline()
+    lon_c = math.atan2(center[1], center[0])
+    planes = []
+    for dyaw, pitch, grow in ((0.3, -0.4, 2.0), (-0.2, -0.2, 0.0), (0.1, -0.6, 0.0)):
+        view = PinholeView(yaw=lon_c + dyaw, pitch=pitch, roll=0.0, fov=math.radians(100), width=400, height=400)
+        px, ok = view.ray_to_pixel(world)
+        assert ok.all()
+        box = np.array([px[:, 0].min(), px[:, 1].min(), px[:, 0].max(), px[:, 1].max()])
+        box += grow * np.array([-1.0, -1.0, 1.0, 1.0])
+        planes.append(TileBox(view, box).edge_planes())
+    planes = np.stack(planes)
+    box = [0.0, 200.0, 100.0, 300.0]  # unused with planes
+
+    def residual(p):
+        obj = DetectedObject("bed", box, size, yaw, outline=outline, edge_planes=p)
+        return _BoxEdges([obj], W, H).residual(center[None, None, :2], np.array([[yaw]]), np.array([[cam]]))[0, 0]
+
+    each = np.stack([residual(p) for p in planes])
+    assert np.abs(each[1:]).max() < 1e-6 and np.all(each[0] > 1e-3)  # the wide box: the object inside every edge
+    assert np.allclose(residual(planes), np.median(each, axis=0), atol=1e-9)
+    assert np.allclose(residual(planes[:2]), each[:2].mean(axis=0), atol=1e-6)  # mean of the sines
+    assert np.allclose(residual(planes[:1]), each[0], atol=1e-12)
+    assert DetectedObject("bed", box, size, yaw, outline=outline, edge_planes=planes).region_planes.shape == (4, 3)
+    # objects with different numbers of views fitted together
+    objs = [DetectedObject("bed", box, size, yaw, outline=outline, edge_planes=p) for p in (planes, planes[0])]
+    both = _BoxEdges(objs, W, H).residual(np.repeat(center[None, None, :2], 2, axis=1), np.full((1, 2), yaw),
+                                          np.full((1, 2), cam))[0]
+    assert np.allclose(both, [np.median(each, axis=0), each[0]], atol=1e-9)
+    with pytest.raises(ValueError, match="edge_planes"):
+        DetectedObject("bed", box, size, yaw, outline=outline, edge_planes=planes[:, :3])

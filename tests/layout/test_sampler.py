@@ -322,6 +322,30 @@ def test_box_term_is_zero_at_the_truth_and_grows_off_it():
         SamplerConfig(box_weight=-1.0)
 
 
+def test_one_object_inside_test_agrees_with_the_all_objects_test():
+    """The repair step tests only the object it moves (``object_ok(which=j)``): the same answer as the test of
+    every object, column j, for footprints inside, through a wall and on the camera."""
+    pl, labels, dets, floor0, ceil0 = synthetic(5, yaw_noise_deg=0.0)
+    lik = surface_likelihood(observe_labels(labels, [d.bbox_pano for d in dets], width=128,
+                                            object_pixels="matched"), floor0, ceil0, 1.6)
+    from layout.sampler import _Problem
+    from layout.likelihood import orientation_likelihood
+
+    prob = _Problem(lik, dets, orientation_likelihood(None, [d.cls for d in dets]), SamplerConfig.improved(), W,
+                    W // 2)
+    rng = np.random.default_rng(0)
+    n = len(dets)
+    lam = np.full(64, pl.camera_height / 1.6)
+    xy = pl.centers[None, :, :2] + rng.normal(0.0, 0.8, (64, n, 2))
+    xy[:4] = 0.05  # on the camera
+    yaw = pl.yaws[None] + rng.normal(0.0, 0.5, (64, n))
+    every = prob.object_ok(lam, xy, yaw)
+    assert every.any() and not every.all()
+    for j in range(n):
+        one = prob.object_ok(lam, xy[:, [j]], yaw[:, [j]], which=j)
+        assert one.shape == (64, 1) and np.array_equal(one[:, 0], every[:, j])
+
+
 @pytest.mark.parametrize("seed", [3, 6])
 def test_flip_moves_turn_a_back_to_front_object_round(seed):
     """A bed and a TV whose pose estimates point 180 degrees the wrong way (the HOG pose's common failure) are
