@@ -106,7 +106,8 @@ def build_parser() -> argparse.ArgumentParser:
 def add_run_options(p: argparse.ArgumentParser) -> None:
     """The pipeline's options, shared by run, demo, eval and batch."""
     p.add_argument("--camera-height", type=float, default=None,
-                   help="camera height in metres; fixes the scale (default: from the objects' sizes, else 1.6 m)")
+                   help="camera height in metres; fixes the scale (default: from the objects' sizes and a prior on "
+                        "ceiling heights, else 1.6 m)")
     p.add_argument("--detector", default="builtin",
                    help="builtin | tflite | onnx:FILE | annotations:FILE")
     p.add_argument("--samples", type=int, default=200, help="N_S, hypotheses of the MAP sampler")

@@ -6,8 +6,10 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
 2. line segments -> Manhattan vanishing points -> upright rotation R
    (:func:`panogeom.rectify.estimate_rectification`)
 3. object detection on perspective tiles, boxes in the panorama, spherical
-   NMS (:mod:`detect`); grab-cut masks (``detect.grabcut``) are not used: on
-   synthetic rooms they made the pose CRF worse than plain box crops
+   NMS (:mod:`detect`), one class per object
+   (:func:`detect.nms.suppress_across_classes`); grab-cut masks
+   (``detect.grabcut``) are not used: on synthetic rooms they made the pose
+   CRF worse than plain box crops
 4. surface labels: orientation map + geometric context, objects masked
    (:mod:`layout.surfaces`)
 5. room geometry from the labels: Manhattan floor polygon and wall height,
@@ -19,9 +21,10 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
    each object's model among its class's and its wall-aligned yaw, with the
    camera height they share, from how well they fit the detection boxes
    (:func:`layout.modelfit.select_models`; box edges cut by a nearer
-   object or a tile border left out, tile boxes as great-circle edges),
-   and from how far each candidate's footprint would reach through the
-   walls of the room of step 5
+   object or a tile border left out, tile boxes as great-circle edges, each
+   edge the median over the tiles that see the object whole), from how far
+   each candidate's footprint would reach through the walls of the room of
+   step 5, and from the wall height it gives that room (a prior on ceilings)
 8. initial objects -> MAP sampling of scale, positions and yaws under E_s,
    E_o and the context prior (:mod:`layout.sampler`)
 
@@ -138,6 +141,7 @@ def _detect(image: np.ndarray, upright: np.ndarray, rect, spec: str, prog: Progr
     Returns the detections the pipeline uses (at or above the backend's score threshold) and all the
     candidates down to :data:`CANDIDATE_SCORE` (for average precision in ``pano2cad eval``)."""
     from detect.backends import ModelFileError, get_detector
+    from detect.nms import suppress_across_classes
     from detect.tiles import detect_panorama
 
     try:
@@ -160,6 +164,9 @@ def _detect(image: np.ndarray, upright: np.ndarray, rect, spec: str, prog: Progr
             detector.score_threshold = CANDIDATE_SCORE
         candidates = detect_panorama(upright, detector, views=views, score_threshold=CANDIDATE_SCORE)
         dets = candidates if threshold is None else [d for d in candidates if d.score >= float(threshold)]
+        # one class per object: the merge is class-aware, and a bed also called a sofa would stand in the scene
+        # twice (the candidates, which average precision ranks per class, keep both)
+        dets = suppress_across_classes(dets)
     prog.say(f"  {len(dets)} objects: " + ", ".join(sorted({d.label for d in dets})))
     return dets, candidates
 
@@ -388,7 +395,8 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
     if objects and options.model_choice == "box":
         with prog.stage("models", "model choice by box fit"):
             choice = select_models([a[0] for a in alternatives], W, H, appearance=[a[1] for a in alternatives],
-                                   camera_height=options.camera_height, floor=geom.floor, floor_camera_height=h0)
+                                   camera_height=options.camera_height, floor=geom.floor, floor_camera_height=h0,
+                                   wall_ratio=geom.ceiling_z / h0)
             changed = 0
             for k, j in enumerate(choice.index):
                 alt, _, lib_models, est, ray = alternatives[k]

@@ -12,6 +12,10 @@ paired with the room's ground-truth objects (those visible in the panorama) by a
 distance in both cases, without a distance gate (so the means are larger than those of ``pano2cad eval``, which
 leaves far pairs unmatched). Printed per class: pairs, mean and median error as estimated and at the true scale.
 A run with the scale given (``--camera-height``, ``--gt-scale``) shows no difference.
+
+Also printed, per set: the mean wall-height error of answering one constant wall height for every room
+(``--constant-wall``, default 2.7 m, the mean of the generator's N(2.7, 0.2) m; paper Sec. 5), the floor any
+scale estimate has to beat.
 """
 
 from __future__ import annotations
@@ -55,6 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("data", help="synthetic sets (pano2cad synth output), comma-separated")
     ap.add_argument("runs", help="pano2cad eval --out folders of those sets, comma-separated, same order")
     ap.add_argument("--scene", default="scene.json", help="scene.json (with context) or scene_init.json")
+    ap.add_argument("--constant-wall", type=float, default=2.7, help="the constant wall height guessed, metres")
     args = ap.parse_args(argv)
     data, runs = [Path(p) for p in args.data.split(",")], [Path(p) for p in args.runs.split(",")]
     if len(data) != len(runs):
@@ -72,6 +77,12 @@ def main(argv: list[str] | None = None) -> int:
         if a.size:
             print(f"| {c} | {a.size} | {100 * a.mean():.1f} / {100 * np.median(a):.1f} | "
                   f"{100 * b.mean():.1f} / {100 * np.median(b):.1f} |")
+    for d in data:
+        walls = np.array([json.loads(f.read_text())["room"]["ceiling_z"] for f in sorted(d.glob("*/gt.json"))])
+        if walls.size:
+            print(f"\n{d}: {walls.size} rooms, wall height {walls.mean():.3f} +- {walls.std():.3f} m; answering "
+                  f"{args.constant_wall:g} m for every room: mean error "
+                  f"{100 * np.abs(walls - args.constant_wall).mean():.1f} cm")
     return 0
 
 

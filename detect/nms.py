@@ -51,6 +51,7 @@ __all__ = [
     "spherical_iou",
     "merge_sphere",
     "nms_sphere",
+    "suppress_across_classes",
 ]
 
 Array = NDArray[np.float64]
@@ -573,6 +574,49 @@ def nms_sphere(detections: Sequence[Detection], iou_threshold: float = 0.5, *, c
     return [d for d, _ in merge_sphere(detections, iou_threshold, containment=containment,
                                        truncated_weight=truncated_weight, class_aware=class_aware,
                                        samples=samples)]
+
+
+def suppress_across_classes(detections: Sequence[Detection], iou_threshold: float = 0.7,
+                            samples: int = 16) -> list[Detection]:
+    """One class per object: of detections of different classes whose regions overlap on the sphere by more
+    than ``iou_threshold``, only the best-scoring is kept (greedy, by decreasing score).
+
+    The merge (:func:`merge_sphere`) is class-aware, so one object that the tiles call a bed and a sofa comes out
+    twice with nearly the same region; a scene cannot hold both (the sampler then pushes one of them away from the
+    other). Measured on the 90 rooms of the tuning seeds 7000 and 8000 (builtin detector, detections at its
+    threshold): 17 such pairs in 15 rooms, spherical IoU 0.6-1.0, e.g. bed / sofa, chair / sofa, TV / chair.
+
+    Parameters
+    ----------
+    detections : sequence of Detection
+    iou_threshold : float in [0, 1]
+    samples : int
+        Quadrature grid size (see :func:`spherical_overlaps`).
+
+    Returns
+    -------
+    list of Detection
+        The kept detections, by decreasing score.
+
+    Examples
+    --------
+    >>> bed = Detection("bed", 0.63, [700.0, 280.0, 1000.0, 500.0], 2048, 1024)
+    >>> sofa = Detection("sofa", 0.57, [702.0, 282.0, 1000.0, 500.0], 2048, 1024)
+    >>> lamp = Detection("plant", 0.5, [760.0, 300.0, 800.0, 360.0], 2048, 1024)  # in front of the bed
+    >>> [d.label for d in suppress_across_classes([sofa, lamp, bed])]
+    ['bed', 'plant']
+    """
+    if not 0.0 <= float(iou_threshold) <= 1.0:
+        raise ValueError(f"iou_threshold: expected a number in [0, 1], got {iou_threshold!r}")
+    dets = sorted(detections, key=lambda d: -d.score)
+    if len(dets) < 2:
+        return dets
+    iou = spherical_iou(dets, samples=samples)
+    keep: list[int] = []
+    for i in range(len(dets)):
+        if all(dets[k].label == dets[i].label or iou[i, k] <= iou_threshold for k in keep):
+            keep.append(i)
+    return [dets[i] for i in keep]
 
 
 def _touching(dets: Iterable[Detection]) -> list[list[Detection]]:

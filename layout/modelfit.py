@@ -40,6 +40,12 @@ box alone cannot rule out often puts the object through a wall, which the
 sampler's hard constraint would otherwise resolve by pulling the object
 towards the camera.
 
+Given the room's wall height in camera heights (``wall_ratio``, which the
+room step measures to 1-2 % on the synthetic rooms), ``P(H)`` also holds a log-normal prior on
+the wall height ``wall_ratio * H`` (:data:`DEFAULT_WALL_PRIOR`): a room
+whose boxes all fit models 20 % larger at a camera 20 % higher (the boxes
+alone cannot tell) is then held to the ceilings rooms have.
+
 Convention:
     World frame of shared/CONVENTIONS.md (metres, z up, camera at
     ``(0, 0, H)``); boxes in pixels of the upright panorama the objects
@@ -61,7 +67,8 @@ from .polygon import distance_to_boundary, oriented_rectangles, points_in_polygo
 from .sampler import DetectedObject, _BoxEdges, _fit_edges, initialise_objects
 
 __all__ = ["ModelChoice", "select_models", "candidate_yaws", "occluded_edges", "room_misfit", "DEFAULT_EDGE_SIGMA",
-           "DEFAULT_APPEARANCE_WEIGHT", "DEFAULT_HEIGHT_PRIOR", "DEFAULT_ROOM_WEIGHT", "DEFAULT_ROOM_SIGMA"]
+           "DEFAULT_APPEARANCE_WEIGHT", "DEFAULT_HEIGHT_PRIOR", "DEFAULT_WALL_PRIOR", "DEFAULT_ROOM_WEIGHT",
+           "DEFAULT_ROOM_SIGMA"]
 
 FloatArray = NDArray[np.float64]
 
@@ -71,6 +78,9 @@ DEFAULT_EDGE_SIGMA: float = math.radians(0.6)
 #: 0.8-2.7 m at two sigma). Chosen on a tuning set (seed 7000) during development with a temporary switch: it
 #: helped with the builtin detector's boxes and cost one room with ground-truth boxes (session-3 note of issue 10).
 DEFAULT_HEIGHT_PRIOR: tuple[float, float] | None = (1.5, 0.3)
+#: Prior on the wall height (``select_models(wall_prior=...)``, with the room's ``wall_ratio``): log-normal, median
+#: 2.6 m, sigma 0.1 (about 2.1-3.2 m at two sigma): living rooms, bedrooms and hotel rooms are mostly 2.4-2.8 m high.
+DEFAULT_WALL_PRIOR: tuple[float, float] | None = (2.6, 0.1)
 _FINE = 9  # points of each finer grid of heights
 _KEEP = 8  # candidates per object fitted on the finer grids
 _BASINS = 3  # local minima of the first grid refined by the finer ones
@@ -295,7 +305,9 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
                   edge_sigma: float | None = None,
                   appearance_weight: float | None = None,
                   floor: ArrayLike | None = None, floor_camera_height: float | None = None,
-                  room_weight: float | None = None, room_sigma: float | None = None) -> ModelChoice:
+                  room_weight: float | None = None, room_sigma: float | None = None,
+                  wall_ratio: float | None = None,
+                  wall_prior: tuple[float, float] | None = DEFAULT_WALL_PRIOR) -> ModelChoice:
     """Choose each object's model by how well it fits its box at one shared camera height.
 
     Parameters
@@ -338,6 +350,17 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
     room_weight, room_sigma : float, optional
         ``w_r`` and the depth scale of the room term (defaults
         :data:`DEFAULT_ROOM_WEIGHT`, :data:`DEFAULT_ROOM_SIGMA` m).
+    wall_ratio : float, optional
+        The room's wall height in camera heights (the room step's, precise
+        to 1-2 % on the synthetic rooms: docs/EVALUATION.md, "Where the
+        scale and position errors come from"). Given, the wall height
+        ``wall_ratio * H`` of each camera height ``H`` also pays
+        ``wall_prior``.
+    wall_prior : (float, float) or None
+        ``(median metres, sigma)`` of a log-normal prior on the wall height,
+        ``(log(wall_ratio * H / median) / sigma)^2`` (default
+        :data:`DEFAULT_WALL_PRIOR`); None or no ``wall_ratio``: none. Unused
+        with a known ``camera_height``.
 
     Returns
     -------
@@ -379,6 +402,11 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         raise ValueError(f"height_prior: expected (median metres > 0, sigma > 0) or None, got {height_prior!r}")
     if int(levels) < 1:
         raise ValueError(f"levels: expected 1 or more, got {levels!r}")
+    if wall_prior is not None and not (len(wall_prior) == 2 and float(wall_prior[0]) > 0
+                                       and float(wall_prior[1]) > 0):
+        raise ValueError(f"wall_prior: expected (median metres > 0, sigma > 0) or None, got {wall_prior!r}")
+    if wall_ratio is not None and not (math.isfinite(wall_ratio) and wall_ratio > 0):
+        raise ValueError(f"wall_ratio: expected a wall height in camera heights > 0 or None, got {wall_ratio!r}")
     room_weight = DEFAULT_ROOM_WEIGHT if room_weight is None else float(room_weight)
     room_sigma = DEFAULT_ROOM_SIGMA if room_sigma is None else float(room_sigma)
     if not (math.isfinite(room_weight) and room_weight >= 0):
@@ -406,9 +434,14 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
     a_flat = np.concatenate([a - a.min() for a in app]) * float(appearance_weight)
 
     def prior(hk: float) -> float:
-        if height_prior is None or camera_height is not None:
+        if camera_height is not None:
             return 0.0
-        return float((math.log(hk / float(height_prior[0])) / float(height_prior[1])) ** 2)
+        p = 0.0
+        if height_prior is not None:
+            p += (math.log(hk / float(height_prior[0])) / float(height_prior[1])) ** 2
+        if wall_prior is not None and wall_ratio is not None:
+            p += (math.log(float(wall_ratio) * hk / float(wall_prior[0])) / float(wall_prior[1])) ** 2
+        return float(p)
 
     def totals(hs: FloatArray, sel: NDArray[np.int64], edges: _BoxEdges) -> tuple[FloatArray, list[FloatArray]]:
         """Total cost at each height and the (N, M_max) cost matrices, candidates ``sel`` (their ``edges``)."""

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from detect.detection import Detection, ImageDetection
 from detect.nms import (box_iou, box_nms, merge_sphere, nms_sphere, pano_box_iou, pano_box_solid_angle, region_contains,
-                        solid_angle, spherical_overlaps)
+                        solid_angle, spherical_overlaps, suppress_across_classes)
 from detect.tiles import box_in_view, tile_consensus, to_panorama
 from panogeom.coords import pixel_grid_rays
 from panogeom.perspective import PinholeView, detection_views
@@ -201,6 +201,25 @@ def test_merged_views_are_the_whole_views_that_score_enough_representative_first
         merge_sphere(whole, max_views=0)
     with pytest.raises(ValueError, match="view_score"):
         merge_sphere(whole, view_score=1.5)
+
+
+def test_one_object_called_two_classes_keeps_its_best_class_only():
+    views = detection_views(200)
+    obj = _object_at(15, -25, half=25)
+    bed = to_panorama(ImageDetection("bed", 0.63, box_in_view(obj, views[0])), views[0], W, H, index=0)
+    sofa = to_panorama(ImageDetection("sofa", 0.57, box_in_view(obj, views[1]) + 1.0), views[1], W, H, index=1)
+    near = _object_at(15, -25, half=12, label="chair", score=0.9)  # a smaller object inside: IoU about 0.2
+    other_bed = _object_at(120, -25, half=25, label="bed", score=0.5)
+    assert spherical_overlaps([bed, sofa])[0][0, 1] > 0.8
+    kept = suppress_across_classes([sofa, other_bed, bed, near])
+    assert [d.label for d in kept] == ["chair", "bed", "bed"] and kept[1] is bed
+    # the same class is the merge's business, not this one's
+    twin = to_panorama(ImageDetection("bed", 0.6, box_in_view(obj, views[1])), views[1], W, H, index=1)
+    assert len(suppress_across_classes([bed, twin])) == 2
+    assert suppress_across_classes([sofa, bed], iou_threshold=1.0) == [bed, sofa]
+    assert suppress_across_classes([]) == []
+    with pytest.raises(ValueError, match="iou_threshold"):
+        suppress_across_classes([bed], iou_threshold=2.0)
 
 
 def test_tile_consensus_ranks_what_most_tiles_find_above_what_one_tile_finds():

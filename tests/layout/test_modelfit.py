@@ -165,6 +165,28 @@ def test_the_height_prior_decides_where_the_boxes_cannot():
         select_models([beds], W, H, height_prior=(0.0, 0.3))
 
 
+def test_the_wall_prior_decides_with_the_room_s_wall_to_camera_ratio():
+    """The same three scaled beds: each fits at its own camera height (1.2, 1.5 or 1.8 m). A room whose walls are
+    2.6 / 1.8 camera heights high makes the wall prior (median 2.6 m) pick the bed seen at 1.8 m; a known camera
+    height ignores it; a bad ratio or prior is refused."""
+    box = world_box_to_pano(np.array([3.0, 0.0, 0.3]), np.array([2.0, 1.6, 0.6]), math.pi, W, H,
+                            camera_height=1.5).extent
+    beds = [DetectedObject("bed", box, [s, 0.8 * s, 0.3 * s], math.pi) for s in (1.6, 2.0, 2.4)]
+    res = select_models([beds], W, H, height_prior=None, wall_ratio=2.6 / 1.8)
+    assert res.index.tolist() == [2] and abs(res.camera_height - 1.8) < 0.02
+    low = select_models([beds], W, H, height_prior=None, wall_ratio=2.6 / 1.2)
+    assert low.index.tolist() == [0] and abs(low.camera_height - 1.2) < 0.02
+    # without the ratio, or with the prior off, the default camera-height prior (median 1.5 m) decides
+    assert select_models([beds], W, H).index.tolist() == [1]
+    assert select_models([beds], W, H, wall_ratio=2.6 / 1.8, wall_prior=None).index.tolist() == [1]
+    known = select_models([beds], W, H, camera_height=1.5, wall_ratio=2.6 / 1.8)
+    assert known.camera_height == 1.5 and known.index.tolist() == [1]
+    with pytest.raises(ValueError, match="wall_ratio"):
+        select_models([beds], W, H, wall_ratio=-1.0)
+    with pytest.raises(ValueError, match="wall_prior"):
+        select_models([beds], W, H, wall_ratio=1.7, wall_prior=(2.6, 0.0))
+
+
 def _bed_outline():
     """A 2.0 x 1.6 x 0.6 m bed at yaw 2 rad, 2.2 m ahead and 1.4 m left of a camera 1.5 m high: its size, yaw,
     camera height, centre, hull outline (object frame) and the outline's points relative to the camera."""
