@@ -583,8 +583,9 @@ def suppress_across_classes(detections: Sequence[Detection], iou_threshold: floa
 
     The merge (:func:`merge_sphere`) is class-aware, so one object that the tiles call a bed and a sofa comes out
     twice with nearly the same region; a scene cannot hold both (the sampler then pushes one of them away from the
-    other). Measured on the 90 rooms of the tuning seeds 7000 and 8000 (builtin detector, detections at its
-    threshold): 17 such pairs in 15 rooms, spherical IoU 0.6-1.0, e.g. bed / sofa, chair / sofa, TV / chair.
+    other). On the 90 rooms of the tuning seeds 7000 and 8000 (builtin detector, the detections a scene was built
+    from) 13 pairs in 12 rooms overlapped by more than 0.7 (IoU of their panorama extents; chair / sofa, bed /
+    sofa, chair / TV, ...; ``benchmarks/count_class_duplicates.py``).
 
     Parameters
     ----------

@@ -566,7 +566,7 @@ class _BoxEdges:
         each object's views: (..., P, 4)."""
         rays = self._outline_rays(xy, yaw, cam_h, self.planar)  # (..., P, M, 3)
         unit = rays / np.maximum(np.linalg.norm(rays, axis=-1, keepdims=True), 1e-12)
-        p, v = self.planes.shape[:2]
+        v = self.planes.shape[1]
         dots = (unit @ self._planes_t).min(axis=-2)  # (..., P, V * 4)
         if v > 1:
             dots = _median_of_first(dots.reshape(dots.shape[:-1] + (v, 4)), self.views)
