@@ -166,7 +166,12 @@ def _detect(image: np.ndarray, upright: np.ndarray, rect, spec: str, prog: Progr
         dets = candidates if threshold is None else [d for d in candidates if d.score >= float(threshold)]
         # one class per object: the merge is class-aware, and a bed also called a sofa would stand in the scene
         # twice (the candidates, which average precision ranks per class, keep both)
-        dets = suppress_across_classes(dets)
+        kept = suppress_across_classes(dets)
+        for d in dets:
+            if not any(k is d for k in kept):
+                prog.say(f"  {d.label} (score {d.score:.2f}) left out: a better-scored detection of another class "
+                         "covers the same region")
+        dets = kept
     prog.say(f"  {len(dets)} objects: " + ", ".join(sorted({d.label for d in dets})))
     return dets, candidates
 
