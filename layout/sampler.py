@@ -115,6 +115,7 @@ __all__ = [
     "DetectedObject",
     "InitialObjects",
     "initialise_objects",
+    "geman_mcclure",
     "camera_height_estimates",
     "fit_boxes",
     "box_scale",
@@ -276,6 +277,17 @@ def _angular_extent(xy: FloatArray, yaw: FloatArray, size2: FloatArray) -> tuple
     lon = xy_to_lon(corners)
     rel = np.angle(np.exp(1j * (lon - lon_c[..., None])))
     return lon_c + rel.min(axis=-1), lon_c + rel.max(axis=-1)
+
+
+def geman_mcclure(x: ArrayLike) -> FloatArray:
+    """The robust cost ``rho(x) = x^2 / (1 + x^2)`` (Geman-McClure) of residuals ``x`` in units of their scale:
+    about ``x^2`` near 0, at most 1 (an outlier costs one inlier's worth). Same shape as ``x``.
+
+    >>> geman_mcclure([0.0, 1.0, 3.0]).tolist()
+    [0.0, 0.5, 0.9]
+    """
+    x2 = np.square(np.asarray(x, dtype=np.float64))
+    return x2 / (1.0 + x2)
 
 
 def _wrap(angle: FloatArray) -> FloatArray:
@@ -1090,8 +1102,7 @@ class _Problem:
     def box_energy(self, lam: FloatArray, xy: FloatArray, yaw: FloatArray) -> FloatArray:
         """``E_b`` (B,): robust misfit of the objects' predicted box edges to their detection boxes."""
         cam = np.broadcast_to((lam * self.h0)[:, None], yaw.shape)
-        x2 = (self.edges.residual(xy, yaw, cam) / self.cfg.box_sigma) ** 2
-        return (x2 / (1.0 + x2)).sum(axis=(1, 2))
+        return geman_mcclure(self.edges.residual(xy, yaw, cam) / self.cfg.box_sigma).sum(axis=(1, 2))
 
     def evaluate(self, lam: FloatArray, xy: FloatArray, yaw: FloatArray) -> _Batch:
         """Energies of hypotheses ``lam (B,)``, ``xy (B, N, 2)``, ``yaw (B, N)``."""
