@@ -483,7 +483,8 @@ def _circular_median(values: FloatArray, same: NDArray[np.bool_], half: int) -> 
 
 
 def column_wall_runs(obs: ColumnObservations, camera_height: float, *, min_columns: int | None = None,
-                     jump_abs: float = 0.06, jump_px: float = 3.0) -> list[WallObservation]:
+                     jump_abs: float = 0.06, jump_px: float = 3.0,
+                     split_steps: bool = True) -> list[WallObservation]:
     """Cut the observed columns into runs of one wall: same axis, continuous offset.
 
     Parameters
@@ -498,6 +499,12 @@ def column_wall_runs(obs: ColumnObservations, camera_height: float, *, min_colum
         (locally median-filtered) offsets differ by more than
         ``jump_abs * camera_height`` plus what a boundary error of
         ``jump_px`` rows does to the offset (``obs.pixel_sigma``).
+    split_steps : bool
+        Also cut a run where its offset steps by more than twice that
+        tolerance between two flat parts (:func:`_split_steps`): a wall seen
+        edge-on between two parallel walls (the side of an alcove, in line
+        with the camera) shows as a ramp of small steps that the
+        neighbour test above does not see.
 
     Returns
     -------
@@ -523,13 +530,15 @@ def column_wall_runs(obs: ColumnObservations, camera_height: float, *, min_colum
     tol = jump_abs * camera_height + jump_px * np.minimum(sig, sig[nxt])
     brk = (ax != ax[nxt]) | (np.abs(smooth - smooth[nxt]) > tol)
     starts = np.sort((np.flatnonzero(brk) + 1) % n) if np.any(brk) else np.array([0])
-    walls: list[WallObservation] = []
-    two_pi = 2.0 * np.pi
+    runs = []
     for s_i, s in enumerate(starts):
         e = starts[(s_i + 1) % len(starts)]  # a single start: the run goes once around
         members = np.arange(s, e) if e > s else np.concatenate([np.arange(s, n), np.arange(0, e)])
-        if members.size < min_cols:
-            continue
+        if members.size >= min_cols:
+            runs.extend(_split_steps(members, coord, tol, min_cols) if split_steps else [members])
+    walls: list[WallObservation] = []
+    two_pi = 2.0 * np.pi
+    for members in runs:
         c = coord[members]
         med = float(np.median(c))
         mad = float(np.median(np.abs(c - med)))
@@ -538,6 +547,54 @@ def column_wall_runs(obs: ColumnObservations, camera_height: float, *, min_colum
         walls.append(WallObservation(axis=int(ax[members[0]]), offset=med, lon_start=lon0, lon_end=lon0 + ext,
                                      support=int(members.size), spread=1.4826 * mad))
     return walls
+
+
+def _split_steps(members: NDArray[np.intp], coord: FloatArray, tol: FloatArray, min_cols: int,
+                 depth: int = 3) -> list[NDArray[np.intp]]:
+    """Cut a run of columns into flat parts where its offset steps (recursive two-piece L1 fit).
+
+    A cut is made at the split that minimises the summed absolute deviation
+    of the two parts from their medians, when both parts have ``min_cols``
+    columns or more, their medians differ by more than twice the run's
+    median tolerance ``tol`` (metres, per column) and by more than 8 times
+    either part's median absolute deviation (two flat walls, not a noisy
+    one), and the split halves the run's absolute deviation or better.
+
+    Parameters
+    ----------
+    members : (M,) int
+        Indices (into ``coord`` and ``tol``) of the run's columns, in order.
+    coord : (N,) float
+        Wall offset read from each observed column.
+    tol : (N,) float
+    min_cols, depth : int
+
+    Returns
+    -------
+    list of (M_i,) int arrays, in order, concatenating to ``members``.
+
+    Examples
+    --------
+    >>> c = np.r_[np.full(20, 2.2), np.linspace(2.2, 1.6, 4), np.full(20, 1.6)]
+    >>> [len(p) for p in _split_steps(np.arange(44), c, np.full(44, 0.1), 4)]
+    [22, 22]
+    """
+    m = members.size
+    if depth <= 0 or m < 2 * min_cols:
+        return [members]
+    c = coord[members]
+    whole = float(np.abs(c - np.median(c)).sum())
+    ks = np.arange(min_cols, m - min_cols + 1)
+    costs = np.array([np.abs(c[:k] - np.median(c[:k])).sum() + np.abs(c[k:] - np.median(c[k:])).sum() for k in ks])
+    k = int(ks[int(np.argmin(costs))])
+    a, b = c[:k], c[k:]
+    ma, mb = float(np.median(a)), float(np.median(b))
+    step = abs(ma - mb)
+    flat = max(float(np.median(np.abs(a - ma))), float(np.median(np.abs(b - mb))))
+    if step <= 2.0 * float(np.median(tol[members])) or step <= 8.0 * flat or float(costs.min()) > 0.5 * whole:
+        return [members]
+    return (_split_steps(members[:k], coord, tol, min_cols, depth - 1)
+            + _split_steps(members[k:], coord, tol, min_cols, depth - 1))
 
 
 def _inlier_fraction(floor: FloatArray, ceiling_z: float, camera_height: float, obs: ColumnObservations,
@@ -762,7 +819,7 @@ def estimate_room_geometry(labels: ArrayLike, camera_height: float = DEFAULT_CAM
                            corner_cost: float = 0.125, robust: bool = True, pixel_error: float = 2.0,
                            corner_columns: float | None = None, prefer: Prefer = "ceiling",
                            shape_axis: bool = True, ceiling_estimate: CeilingEstimate = "lowest_mode",
-                           robust_below: float = 0.75) -> RoomGeometry:
+                           robust_below: float = 0.75, split_steps: bool = True) -> RoomGeometry:
     """Manhattan floor polygon and wall height of the room seen in a surface-label panorama.
 
     Parameters
@@ -801,6 +858,10 @@ def estimate_room_geometry(labels: ArrayLike, camera_height: float = DEFAULT_CAM
         See :func:`observe_columns`. ``prefer="floor", shape_axis=False,
         ceiling_estimate="median", robust=False`` reproduce the estimator
         before furniture-robustness was added.
+    split_steps : bool
+        Cut runs of columns where their wall offset steps between two flat
+        parts (see :func:`column_wall_runs`; ``False``: the estimator
+        before session 8).
 
     Returns
     -------
@@ -842,7 +903,7 @@ def estimate_room_geometry(labels: ArrayLike, camera_height: float = DEFAULT_CAM
     reasons: list[str] = []
     alignment = None
     if method == "columns":
-        walls = column_wall_runs(obs, h_cam)
+        walls = column_wall_runs(obs, h_cam, split_steps=split_steps)
         ceiling_z, ceiling_support = obs.ceiling_z, obs.ceiling_support
         points = obs.points[obs.observed]
     else:

@@ -189,6 +189,32 @@ def test_robust_selection_replaces_a_polygon_that_explains_few_columns():
     _assert_valid(geo)
 
 
+# An alcove 0.6 m deep in the wall x = 2.2; from a camera at (0, -0.4) its side wall y = 0.15 is seen nearly
+# edge-on, over some 14 columns between the two parallel walls.
+ALCOVE = np.array([[-3.0, -1.5], [2.2, -1.5], [2.2, 0.15], [1.6, 0.15], [1.6, 1.45], [2.2, 1.45], [2.2, 2.6],
+                   [-3.0, 2.6]])
+
+
+def test_a_wall_seen_edge_on_and_labelled_like_its_neighbours_still_splits_them():
+    cam = np.array([0.0, -0.4])
+    lab = render_room_labels(ALCOVE, 2.7, cam, 1.6, 1024)
+    truth = ALCOVE - cam
+    p = observe_columns(lab, 1.6).points
+    side = np.flatnonzero((p[:, 0] > 1.55) & (p[:, 0] < 2.25) & (p[:, 1] > 0.5) & (p[:, 1] < 1.9))
+    side = side[(lab[:, side] == WALL_Y).any(axis=0)]
+    assert 8 <= side.size <= 20
+    cols = np.arange(side.min() - 30, side.max() + 30)
+    merged = lab.copy()
+    merged[:, cols] = np.where(lab[:, cols] == WALL_Y, WALL_X, lab[:, cols])  # the side wall called x-facing
+    seen = observe_columns(merged, 1.6, shape_axis=False)
+    assert np.all(seen.axis[cols][seen.observed[cols]] == 0)  # no y-wall column to cut the run at
+    before = estimate_room_geometry(merged, 1.6, shape_axis=False, split_steps=False)
+    assert before.n_corners == 4 and iou_2d(before.floor, truth) < 0.97  # one wall: the ramp's median
+    geo = estimate_room_geometry(merged, 1.6, shape_axis=False)
+    assert geo.n_corners == 8 and iou_2d(geo.floor, truth) > 0.99
+    _assert_valid(geo)
+
+
 # ---------------------------------------------------------------- degenerate cases
 
 
