@@ -583,15 +583,22 @@ def _split_steps(members: NDArray[np.intp], coord: FloatArray, tol: FloatArray, 
     if depth <= 0 or m < 2 * min_cols:
         return [members]
     c = coord[members]
+    tol_run = float(np.median(tol[members]))
+    if float(np.ptp(c)) <= 2.0 * tol_run:  # no two medians of parts can differ by more
+        return [members]
     whole = float(np.abs(c - np.median(c)).sum())
     ks = np.arange(min_cols, m - min_cols + 1)
-    costs = np.array([np.abs(c[:k] - np.median(c[:k])).sum() + np.abs(c[k:] - np.median(c[k:])).sum() for k in ks])
+    left = np.arange(m)[None, :] < ks[:, None]  # (K, M): column i in the first part of split k
+    costs = np.zeros(len(ks))
+    for part in (left, ~left):  # every split's two medians at once
+        vals = np.where(part, c[None, :], np.nan)
+        costs += np.nansum(np.abs(vals - np.nanmedian(vals, axis=1, keepdims=True)), axis=1)
     k = int(ks[int(np.argmin(costs))])
     a, b = c[:k], c[k:]
     ma, mb = float(np.median(a)), float(np.median(b))
     step = abs(ma - mb)
     flat = max(float(np.median(np.abs(a - ma))), float(np.median(np.abs(b - mb))))
-    if step <= 2.0 * float(np.median(tol[members])) or step <= 8.0 * flat or float(costs.min()) > 0.5 * whole:
+    if step <= 2.0 * tol_run or step <= 8.0 * flat or float(costs.min()) > 0.5 * whole:
         return [members]
     return (_split_steps(members[:k], coord, tol, min_cols, depth - 1)
             + _split_steps(members[k:], coord, tol, min_cols, depth - 1))
