@@ -16,7 +16,9 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
    metric under an assumed camera height (:mod:`layout.roomgeom`)
 6. object crops (the region each detection's tile box bounds, :func:`object_crop`)
    -> HOG -> k-NN against the model library's renders -> pose CRF by TRW-S
-   -> yaw and model per object (:mod:`posecrf`)
+   -> yaw and model per object (:mod:`posecrf`); not in the paper, the E_o tables
+   also pay the project's learned front/back prior on the crop-relative yaw
+   (:mod:`posecrf.orientnet`, ``RunOptions.orientation``)
 7. model choice by box fit (not in the paper, ``RunOptions.model_choice``):
    each object's model among its class's and its wall-aligned yaw, with the
    camera height they share, from how well they fit the detection boxes
@@ -51,6 +53,12 @@ DEFAULT_CAMERA_HEIGHT = 1.6
 CANDIDATE_SCORE = 0.05
 #: ``RunOptions.crop``: the region a tile box bounds, or the whole panorama box.
 CROP_MODES = ("tile", "box")
+#: ``RunOptions.orientation``: E_o plus the learned front/back prior (:mod:`posecrf.orientnet`), or E_o alone.
+ORIENTATION_MODES = ("net", "hog")
+#: Weight of the orientation network's cost ``-log(n_bins p)`` added to E_o (``RunOptions.orientation="net"``);
+#: chosen on the tuning seeds 7000 and 8000 among 0.1 and 0.3 (docs/EVALUATION.md, session 10). The cost spans
+#: about 8 over the yaws of a crop, E_o (HOG distance) about 0.3.
+ORIENTATION_WEIGHT = 0.1
 
 
 @dataclass(frozen=True)
@@ -80,6 +88,10 @@ class RunOptions:
     crop : str
         The pose CRF's crop of a detection (:func:`object_crop`): ``"tile"`` (default) the region its tile box
         bounds where it has one, ``"box"`` its whole panorama box.
+    orientation : str
+        ``"net"`` (default): E_o of every pose plus ``ORIENTATION_WEIGHT`` times the cost of the project's
+        orientation network (:mod:`posecrf.orientnet`, a learned p(yaw | crop) that tells fronts from backs);
+        ``"hog"``: E_o alone (the paper).
     """
 
     camera_height: float | None = None
@@ -90,10 +102,13 @@ class RunOptions:
     sampler_mode: str = "improved"
     model_choice: str = "box"
     crop: str = "tile"
+    orientation: str = "net"
 
     def __post_init__(self) -> None:
         if self.crop not in CROP_MODES:  # checked here: a bad mode inside the pose stage would read as "no pose"
             raise ValueError(f"crop: expected one of {CROP_MODES}, got {self.crop!r}")
+        if self.orientation not in ORIENTATION_MODES:
+            raise ValueError(f"orientation: expected one of {ORIENTATION_MODES}, got {self.orientation!r}")
 
 
 @dataclass(frozen=True)
@@ -235,10 +250,21 @@ def object_crop(upright: np.ndarray, det, mode: str = "tile") -> tuple[np.ndarra
     return equirect_to_perspective(upright, view), view
 
 
-def _poses(upright: np.ndarray, dets: list, prog: Progress, crop_mode: str = "tile") -> list:
+def _with_orientation_prior(est, probs: np.ndarray, weight: float):
+    """The pose estimate with ``weight * orientation_costs`` added to its E_o tables (every model, every pitch)."""
+    from posecrf.orientnet import orientation_costs
+
+    yaws = np.arange(est.grid.n_yaw) * est.grid.yaw_step
+    c = weight * orientation_costs(probs, yaws)
+    return replace(est, e_o=est.e_o + c[:, None], e_o_models=est.e_o_models + c[None, :, None])
+
+
+def _poses(upright: np.ndarray, dets: list, prog: Progress, crop_mode: str = "tile",
+           orientation: str = "net") -> list:
     """Per detection: (model, yaw in the upright frame or None, E_o table over 72 world-yaw bins or None,
     the pose estimate, the crop's ray), or None without a pose."""
     from posecrf.library import builtin_library
+    from posecrf.orientnet import ORIENT_CLASSES, load_orientation_net
     from posecrf.pose import estimate_poses
     from posecrf.render import PoseGrid, RenderSettings
     from posecrf.cache import library_renders
@@ -268,7 +294,11 @@ def _poses(upright: np.ndarray, dets: list, prog: Progress, crop_mode: str = "ti
         if not idx:
             continue
         res = estimate_poses(renders, cls, crops)
-        for i, view, est in zip(idx, views, res.estimates):
+        estimates = list(res.estimates)
+        if orientation == "net" and cls in ORIENT_CLASSES:
+            probs = load_orientation_net().probabilities(crops, [cls] * len(crops))
+            estimates = [_with_orientation_prior(e, p, ORIENTATION_WEIGHT) for e, p in zip(estimates, probs)]
+        for i, view, est in zip(idx, views, estimates):
             model = lib[est.model_id]
             ray = view.direction
             if est.yaw_rel is None:
@@ -356,7 +386,7 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
     poses: list = []
     if dets:
         with prog.stage("pose", "object poses (HOG + pose CRF)"):
-            poses = _poses(upright, dets, prog, options.crop)
+            poses = _poses(upright, dets, prog, options.crop, options.orientation)
 
     lib = builtin_library()
     objects, eo, alternatives = [], [], []
