@@ -56,8 +56,8 @@ CROP_MODES = ("tile", "box")
 #: ``RunOptions.orientation``: E_o plus the learned front/back prior (:mod:`posecrf.orientnet`), or E_o alone.
 ORIENTATION_MODES = ("net", "hog")
 #: Weight of the orientation network's cost ``-log(n_bins p)`` added to E_o (``RunOptions.orientation="net"``);
-#: chosen on the tuning seeds 7000 and 8000 among 0.1 and 0.3 (docs/EVALUATION.md, session 10). The cost spans
-#: about 8 over the yaws of a crop, E_o (HOG distance) about 0.3.
+#: chosen on the tuning seeds 7000 and 8000 among 0.1 and 0.3 (docs/EVALUATION.md, session 10). Over the yaws of
+#: one crop the cost spans about 9, E_o (HOG distance) about 0.3 (``benchmarks/eval_orientnet.py vs-hog``).
 ORIENTATION_WEIGHT = 0.1
 
 
@@ -254,8 +254,7 @@ def _with_orientation_prior(est, probs: np.ndarray, weight: float):
     """The pose estimate with ``weight * orientation_costs`` added to its E_o tables (every model, every pitch)."""
     from posecrf.orientnet import orientation_costs
 
-    yaws = np.arange(est.grid.n_yaw) * est.grid.yaw_step
-    c = weight * orientation_costs(probs, yaws)
+    c = weight * orientation_costs(probs, est.grid.yaws)
     return replace(est, e_o=est.e_o + c[:, None], e_o_models=est.e_o_models + c[None, :, None])
 
 

@@ -49,6 +49,7 @@ __all__ = [
     "load_orientation_net",
     "orientation_costs",
     "save_weights",
+    "bin_yaws",
 ]
 
 #: Classes with a head (every asymmetric class of the builtin library).
@@ -61,6 +62,11 @@ INPUT_SIZE = 64
 DEFAULT_WEIGHTS = Path(__file__).resolve().parent / "weights" / "orientnet.pt"
 
 _WIDTHS = (16, 32, 48, 64, 96)
+
+
+def bin_yaws(n_bins: int = N_BINS) -> NDArray[np.float64]:
+    """Centres of the yaw bins, radians: ``2*pi*k / n_bins`` for k = 0 .. n_bins - 1."""
+    return np.arange(n_bins) * (2.0 * math.pi / n_bins)
 
 
 def _torch() -> Any:

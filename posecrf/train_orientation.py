@@ -32,12 +32,15 @@ from pathlib import Path
 import numpy as np
 
 from .crops import extract_crop, relative_yaw
-from .orientnet import N_BINS, ORIENT_CLASSES, build_network, prepare_crops, save_weights
+from panogeom.boxes import box_width
 
-__all__ = ["crops_from_rooms", "train", "main"]
+from .orientnet import N_BINS, ORIENT_CLASSES, bin_yaws, build_network, prepare_crops, save_weights
+
+__all__ = ["crops_from_rooms", "train", "score", "read_rgb", "main"]
 
 
-def _read_rgb(path: Path) -> np.ndarray:
+def read_rgb(path: Path) -> np.ndarray:
+    """An image file as (H, W, 3) uint8 RGB; ValueError naming an unreadable file."""
     import cv2
 
     img = cv2.imread(str(path), cv2.IMREAD_COLOR)
@@ -61,7 +64,7 @@ def crops_from_rooms(rooms: list[Path], jitter: int, box_jitter: float, min_pixe
     xs, cs, ys = [], [], []
     for room in rooms:
         gt = json.loads((room / "gt.json").read_text())
-        pano = _read_rgb(room / "pano.png")
+        pano = read_rgb(room / "pano.png")
         H, W = pano.shape[:2]
         for obj in gt["objects"]:
             if obj["class"] not in ORIENT_CLASSES or obj.get("visible_px", 0) < min_pixels:
@@ -69,8 +72,7 @@ def crops_from_rooms(rooms: list[Path], jitter: int, box_jitter: float, min_pixe
             if obj.get("symmetry", "none") != "none":
                 continue
             u0, v0, u1, v1 = (float(t) for t in obj["bbox_pano"])
-            bw = (u1 - u0) % W if u1 < u0 else u1 - u0
-            bh = v1 - v0
+            bw, bh = box_width(obj["bbox_pano"], W), v1 - v0
             crops = []
             for j in range(jitter):
                 d = np.zeros(4) if j == 0 else rng.uniform(-box_jitter, box_jitter, 4) * [bw, bh, bw, bh]
@@ -94,15 +96,14 @@ def crops_from_rooms(rooms: list[Path], jitter: int, box_jitter: float, min_pixe
 
 
 def _soft_targets(yaw: np.ndarray, kappa: float) -> np.ndarray:
-    centres = np.arange(N_BINS) * (2.0 * math.pi / N_BINS)
-    logit = kappa * np.cos(centres[None, :] - yaw[:, None])
+    logit = kappa * np.cos(bin_yaws()[None, :] - yaw[:, None])
     t = np.exp(logit - logit.max(axis=1, keepdims=True))
     return (t / t.sum(axis=1, keepdims=True)).astype(np.float32)
 
 
-def _score(probs: np.ndarray, yaw: np.ndarray, cls: np.ndarray) -> dict:
-    centres = np.arange(N_BINS) * (2.0 * math.pi / N_BINS)
-    best = centres[probs.argmax(axis=1)]
+def score(probs: np.ndarray, yaw: np.ndarray, cls: np.ndarray) -> dict:
+    """Per class: crops, median angular error of the most likely bin (deg) and the share within 45 deg."""
+    best = bin_yaws(probs.shape[1])[probs.argmax(axis=1)]
     err = np.degrees(np.abs((best - yaw + math.pi) % (2.0 * math.pi) - math.pi))
     out = {}
     for k, name in enumerate(ORIENT_CLASSES):
@@ -191,7 +192,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(x)} training crops from {len(rooms) - n_val} rooms, {len(xv)} validation crops from {n_val} "
           f"rooms ({time.time() - t0:.0f} s)", flush=True)
     net = train(x, c, y, a.epochs, a.batch, a.lr, a.kappa, a.seed, log=lambda s: print(s, flush=True))
-    val = _score(_probs(net, xv, cv), yv, cv)
+    val = score(_probs(net, xv, cv), yv, cv)
     print(json.dumps(val, indent=1))
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -21,7 +21,7 @@ from posecrf.orientnet import (
     prepare_crops,
     save_weights,
 )
-from posecrf.train_orientation import _read_rgb, _soft_targets, train
+from posecrf.train_orientation import _soft_targets, read_rgb, train
 
 ROOM = Path(__file__).resolve().parents[1] / "detect" / "data" / "builtin_room"  # seed 4100: never trained on
 
@@ -84,7 +84,7 @@ def test_committed_weights_load_and_score():
 def test_committed_weights_on_a_held_out_room():
     """The room of the detector tests (seed 4100, not a training seed): most objects' most likely yaw is right."""
     gt = json.loads((ROOM / "gt.json").read_text())
-    pano = _read_rgb(ROOM / "pano.jpg")
+    pano = read_rgb(ROOM / "pano.jpg")
     net = load_orientation_net()
     errs = []
     for o in gt["objects"]:

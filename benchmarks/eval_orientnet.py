@@ -1,0 +1,130 @@
+"""The orientation network (posecrf.orientnet) on its own: held-out rooms, and against E_o on gt-box crops.
+
+Run::
+
+    pano2cad synth --rooms 800 --seed 3000 --size 1024 --out out/train3000
+    .venv/bin/python benchmarks/eval_orientnet.py held-out out/train3000 --first 720 --last 800 WEIGHTS.pt [...]
+    pano2cad synth --rooms 30 --seed 7000 --size 1024 --out out/tune7000
+    .venv/bin/python benchmarks/eval_orientnet.py vs-hog out/tune7000 WEIGHTS.pt --weights 0 0.05 0.1 0.2 0.5
+
+``held-out``: every object of rooms ``[first, last)`` of a synthetic set (the crops and labels of
+:func:`posecrf.train_orientation.crops_from_rooms`, exact gt boxes), scored per class for each weights file:
+the share whose most likely bin is within 45 deg of the truth (:func:`posecrf.train_orientation.score`).
+
+``vs-hog``: every object with at least 300 visible pixels of a class with a network head, cropped at its gt box
+(:func:`posecrf.crops.extract_crop`), through the pose CRF (:func:`posecrf.pose.estimate_poses`, per room and
+class as the pipeline does). For each weight ``w``, the yaw of least ``E_o + w * cost`` over the pose grid (E_o
+of the object's TRUE model at its best pitch; cost :func:`posecrf.orientnet.orientation_costs`): the share of
+objects more than 45 deg off, per class; also the CRF's own yaw, and the median spread (max - min over the yaws)
+of E_o and of the network's cost, which sets the scale of ``w``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+
+def _err_deg(a, b) -> np.ndarray:
+    return np.degrees(np.abs((np.asarray(a) - np.asarray(b) + math.pi) % (2.0 * math.pi) - math.pi))
+
+
+def held_out(rooms_dir: str, first: int, last: int, weights: list[str]) -> None:
+    import torch
+
+    from posecrf.orientnet import load_orientation_net
+    from posecrf.train_orientation import crops_from_rooms, score
+
+    rooms = sorted(p for p in Path(rooms_dir).glob("room-*") if (p / "gt.json").is_file())[first:last]
+    x, c, y = crops_from_rooms(rooms, 1, 0.0, 300, np.random.default_rng(0))
+    print(f"{len(x)} crops of {len(rooms)} rooms ({rooms_dir}, rooms {first}-{last - 1}); within 45 deg:\n")
+    print("| weights | " + " | ".join(n for n in _classes()) + " |")
+    print("|---|" + "---:|" * len(_classes()))
+    for w in weights:
+        net = load_orientation_net(w)
+        with torch.no_grad():
+            lg = net.module(torch.from_numpy(x))[torch.arange(len(x)), torch.from_numpy(c)]
+        s = score(torch.softmax(lg, 1).numpy(), y, c)
+        print(f"| {w} | " + " | ".join(f"{100 * s[n]['within_45_deg']:.0f} % ({s[n]['crops']})" if n in s else ""
+                                        for n in _classes()) + " |")
+
+
+def _classes() -> tuple[str, ...]:
+    from posecrf.orientnet import ORIENT_CLASSES
+
+    return ORIENT_CLASSES
+
+
+def vs_hog(rooms_dir: str, weights_file: str, ws: list[float]) -> None:
+    from posecrf.cache import library_renders
+    from posecrf.crops import extract_crop, relative_yaw
+    from posecrf.library import builtin_library
+    from posecrf.orientnet import load_orientation_net, orientation_costs
+    from posecrf.pose import estimate_poses
+    from posecrf.render import PoseGrid, RenderSettings
+    from posecrf.train_orientation import read_rgb
+
+    lib = builtin_library()
+    grid = PoseGrid()
+    renders = library_renders(lib, grid=grid, settings=RenderSettings())
+    net = load_orientation_net(weights_file)
+    rows = []  # (class, true yaw_rel, CRF yaw_rel, E_o over yaws, net cost over yaws)
+    for room in sorted(Path(rooms_dir).glob("room-*")):
+        gt = json.loads((room / "gt.json").read_text())
+        pano = read_rgb(room / "pano.png")
+        by_class: dict[str, list] = {}
+        for o in gt["objects"]:
+            if o["class"] not in net.classes or o["visible_px"] < 300:
+                continue
+            try:
+                crop, view = extract_crop(pano, o["bbox_pano"])
+            except ValueError:
+                continue
+            truth = float(relative_yaw(math.radians(o["yaw_deg"]), view.direction))
+            by_class.setdefault(o["class"], []).append((crop, truth, o["model"]))
+        for cls, items in by_class.items():
+            crops = [i[0] for i in items]
+            res = estimate_poses(renders, cls, crops)
+            probs = net.probabilities(crops, [cls] * len(crops))
+            for (_, truth, mid), est, p in zip(items, res.estimates, probs):
+                table = est.e_o_models[est.model_ids.index(mid)] if mid in est.model_ids else est.e_o
+                rows.append((cls, truth, est.yaw_rel, table.min(axis=1), orientation_costs(p, grid.yaws)))
+    print(f"{len(rows)} objects of {rooms_dir}, weights {weights_file}")
+    print(f"median spread over the yaws: E_o {np.median([r[3].max() - r[3].min() for r in rows]):.2f}, "
+          f"network cost {np.median([r[4].max() - r[4].min() for r in rows]):.2f}\n")
+    print("| class | objects | CRF yaw | " + " | ".join(f"E_o + {w} x net" for w in ws) + " |")
+    print("|---|---:|---:|" + "---:|" * len(ws))
+    for cls in net.classes:
+        r = [x for x in rows if x[0] == cls]
+        if not r:
+            continue
+        crf = np.mean([_err_deg(x[2], x[1]) > 45 for x in r if x[2] is not None])
+        cells = [np.mean([_err_deg(grid.yaws[np.argmin(x[3] + w * x[4])], x[1]) > 45 for x in r]) for w in ws]
+        print(f"| {cls} | {len(r)} | {100 * crf:.0f} % | " + " | ".join(f"{100 * c:.0f} %" for c in cells) + " |")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    h = sub.add_parser("held-out")
+    h.add_argument("rooms")
+    h.add_argument("weights", nargs="+")
+    h.add_argument("--first", type=int, default=0)
+    h.add_argument("--last", type=int, default=None)
+    v = sub.add_parser("vs-hog")
+    v.add_argument("rooms")
+    v.add_argument("weights_file")
+    v.add_argument("--weights", type=float, nargs="+", default=[0.0, 0.1])
+    a = ap.parse_args()
+    if a.cmd == "held-out":
+        held_out(a.rooms, a.first, a.last if a.last is not None else 10**9, a.weights)
+    else:
+        vs_hog(a.rooms, a.weights_file, a.weights)
+
+
+if __name__ == "__main__":
+    main()
