@@ -24,6 +24,7 @@ import argparse
 import json
 from collections import defaultdict
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -31,16 +32,34 @@ from scipy.optimize import linear_sum_assignment
 CLASSES = ("bed", "chair", "tv", "plant")
 
 
-def position_errors(data: Path, run: Path, scene: str = "scene.json") -> dict[str, dict[str, list[float]]]:
-    """Per mode ('estimated', 'true scale') and class: the paired floor distances, metres."""
-    out: dict[str, dict[str, list[float]]] = {"estimated": defaultdict(list), "true scale": defaultdict(list)}
+def scaled_rooms(data: Path, run: Path, scene: str = "scene.json") -> Iterator[tuple[dict, dict, float]]:
+    """Per room of ``run`` with a gt.json in ``data``: (gt, predicted scene, true / estimated camera height)."""
     for room in sorted(p for p in run.iterdir() if (p / scene).is_file()):
         gt_file = data / room.name / "gt.json"
         if not gt_file.is_file():
             continue
         gt = json.loads(gt_file.read_text())
         sc = json.loads((room / scene).read_text())
-        k = float(gt["camera_height_m"]) / float(sc["camera"]["height_m"])
+        yield gt, sc, float(gt["camera_height_m"]) / float(sc["camera"]["height_m"])
+
+
+def sets_and_runs(ap: argparse.ArgumentParser, argv: list[str] | None) -> tuple[argparse.Namespace, list[Path],
+                                                                                  list[Path]]:
+    """Parse ``data runs [--scene]`` (and whatever else ``ap`` has); the comma-separated sets and runs."""
+    ap.add_argument("data", help="synthetic sets (pano2cad synth output), comma-separated")
+    ap.add_argument("runs", help="pano2cad eval --out folders of those sets, comma-separated, same order")
+    ap.add_argument("--scene", default="scene.json", help="scene.json (with context) or scene_init.json")
+    args = ap.parse_args(argv)
+    data, runs = [Path(p) for p in args.data.split(",")], [Path(p) for p in args.runs.split(",")]
+    if len(data) != len(runs):
+        ap.error(f"expected as many runs as sets, got {len(runs)} and {len(data)}")
+    return args, data, runs
+
+
+def position_errors(data: Path, run: Path, scene: str = "scene.json") -> dict[str, dict[str, list[float]]]:
+    """Per mode ('estimated', 'true scale') and class: the paired floor distances, metres."""
+    out: dict[str, dict[str, list[float]]] = {"estimated": defaultdict(list), "true scale": defaultdict(list)}
+    for gt, sc, k in scaled_rooms(data, run, scene):
         for c in CLASSES:
             g = np.array([o["center"][:2] for o in gt["objects"] if o["class"] == c and o["bbox_pano"] is not None],
                          dtype=np.float64).reshape(-1, 2)
@@ -56,14 +75,8 @@ def position_errors(data: Path, run: Path, scene: str = "scene.json") -> dict[st
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("data", help="synthetic sets (pano2cad synth output), comma-separated")
-    ap.add_argument("runs", help="pano2cad eval --out folders of those sets, comma-separated, same order")
-    ap.add_argument("--scene", default="scene.json", help="scene.json (with context) or scene_init.json")
     ap.add_argument("--constant-wall", type=float, default=2.7, help="the constant wall height guessed, metres")
-    args = ap.parse_args(argv)
-    data, runs = [Path(p) for p in args.data.split(",")], [Path(p) for p in args.runs.split(",")]
-    if len(data) != len(runs):
-        ap.error(f"expected as many runs as sets, got {len(runs)} and {len(data)}")
+    args, data, runs = sets_and_runs(ap, argv)
     pooled: dict[str, dict[str, list[float]]] = {"estimated": defaultdict(list), "true scale": defaultdict(list)}
     for d, r in zip(data, runs):
         for mode, per in position_errors(d, r, args.scene).items():

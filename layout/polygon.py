@@ -34,6 +34,7 @@ __all__ = [
     "oriented_rectangles",
     "convex_intersection_area",
     "convex_in_polygon",
+    "outside_fraction",
     "has_repeated_vertex",
     "is_manhattan",
     "is_simple",
@@ -653,6 +654,51 @@ def _convex_in_polygon(cv: FloatArray, poly: FloatArray, tol: float) -> NDArray[
     crosses = (~empty) & ((t_hi - t_lo) * seg_len > 1e-12)
     centroid_in = points_in_polygon(origin, poly)
     return np.asarray(centroid_in & ~np.any(crosses, axis=-1))
+
+
+def outside_fraction(quads: ArrayLike, polygon: ArrayLike, *, samples: int = 6, margin: float = 0.0) -> FloatArray:
+    """Share of each convex quadrilateral's area (e.g. an object footprint) outside a polygon, batched.
+
+    Estimated on a ``samples x samples`` grid of cell centres spanned
+    bilinearly by the four corners (the cells the boundary crosses count
+    wholly in or out).
+
+    Parameters
+    ----------
+    quads : (..., 4, 2) float
+        Corners in order around the quadrilateral (e.g.
+        :func:`oriented_rectangles`).
+    polygon : (N, 2) float
+        Any simple polygon.
+    samples : int
+        Grid points per side.
+    margin : float
+        Points outside the polygon but within ``margin`` of its boundary
+        count as inside (tolerance for a footprint touching a wall).
+
+    Returns
+    -------
+    (...) float in [0, 1].
+
+    >>> room = [[0.0, 0.0], [4.0, 0.0], [4.0, 3.0], [0.0, 3.0]]
+    >>> outside_fraction(oriented_rectangles([[1.0, 1.0], [4.0, 1.0]], [0.0, 0.0], [1.0, 1.0]), room).tolist()
+    [0.0, 0.5]
+    """
+    q = np.asarray(quads, dtype=np.float64)
+    if q.shape[-2:] != (4, 2):
+        raise ValueError(f"quads: expected shape (..., 4, 2), got {q.shape}")
+    n = int(samples)
+    if n < 1:
+        raise ValueError(f"samples: expected an integer >= 1, got {samples!r}")
+    if not (np.isfinite(margin) and margin >= 0):
+        raise ValueError(f"margin: expected a finite value >= 0, got {margin!r}")
+    t = (np.arange(n) + 0.5) / n
+    a, b = np.meshgrid(t, t, indexing="ij")
+    a, b = a.reshape(-1, 1), b.reshape(-1, 1)  # (n*n, 1)
+    p0, p1, p2, p3 = (q[..., None, k, :] for k in range(4))
+    pts = (1 - a) * (1 - b) * p0 + a * (1 - b) * p1 + a * b * p2 + (1 - a) * b * p3  # (..., n*n, 2)
+    inside = points_in_polygon(pts, polygon, margin=-float(margin))
+    return 1.0 - inside.mean(axis=-1)
 
 
 def has_repeated_vertex(polygon: ArrayLike, *, tol: float = 1e-9) -> bool:

@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from layout.polygon import (
+    outside_fraction,
     as_ccw,
     closest_segment,
     convex_in_polygon,
@@ -277,3 +278,25 @@ def test_bad_points_input():
         points_in_polygon(np.zeros((3, 3)), L_SHAPE)
     with pytest.raises(ValueError, match="single polygon"):
         points_in_polygon([0.0, 0.0], np.stack([L_SHAPE, L_SHAPE]))
+
+
+def test_outside_fraction_matches_area_in_an_l_shape():
+    # a 2 x 2 footprint centred on the inner corner of the L: a quarter of it is outside
+    quads = oriented_rectangles(np.array([[2.0, 2.0], [1.0, 1.0], [5.0, 1.0]]), np.zeros(3), np.full((3, 2), 2.0))
+    share = outside_fraction(quads, L_SHAPE, samples=20)
+    np.testing.assert_allclose(share, [0.25, 0.0, 1.0], atol=1e-9)
+    # turned by 90 degrees the same footprint covers the same area; batched over leading axes
+    assert outside_fraction(oriented_rectangles([2.0, 2.0], np.pi / 2, [2.0, 2.0]), L_SHAPE, samples=20) == 0.25
+    assert outside_fraction(quads[None], L_SHAPE).shape == (1, 3)
+
+
+def test_outside_fraction_margin_and_errors():
+    touching = oriented_rectangles([4.05, 1.0], 0.0, [0.2, 0.2])  # half of it 0 - 0.15 m through the wall x = 4
+    assert outside_fraction(touching, L_SHAPE, samples=20) == pytest.approx(0.75)
+    assert outside_fraction(touching, L_SHAPE, samples=10, margin=0.2) == 0.0
+    with pytest.raises(ValueError, match="quads"):
+        outside_fraction(np.zeros((3, 2)), L_SHAPE)
+    with pytest.raises(ValueError, match="margin"):
+        outside_fraction(touching, L_SHAPE, margin=-1.0)
+    with pytest.raises(ValueError, match="samples"):
+        outside_fraction(touching, L_SHAPE, samples=0)
