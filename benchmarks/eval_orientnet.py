@@ -28,15 +28,15 @@ from pathlib import Path
 
 import numpy as np
 
+from panogeom.rotation import angle_difference
+
 
 def _err_deg(a, b) -> np.ndarray:
-    return np.degrees(np.abs((np.asarray(a) - np.asarray(b) + math.pi) % (2.0 * math.pi) - math.pi))
+    return np.degrees(angle_difference(a, b))
 
 
 def held_out(rooms_dir: str, first: int, last: int, weights: list[str]) -> None:
-    import torch
-
-    from posecrf.orientnet import load_orientation_net
+    from posecrf.orientnet import head_probabilities, load_orientation_net
     from posecrf.train_orientation import crops_from_rooms, score
 
     rooms = sorted(p for p in Path(rooms_dir).glob("room-*") if (p / "gt.json").is_file())[first:last]
@@ -45,10 +45,7 @@ def held_out(rooms_dir: str, first: int, last: int, weights: list[str]) -> None:
     print("| weights | " + " | ".join(n for n in _classes()) + " |")
     print("|---|" + "---:|" * len(_classes()))
     for w in weights:
-        net = load_orientation_net(w)
-        with torch.no_grad():
-            lg = net.module(torch.from_numpy(x))[torch.arange(len(x)), torch.from_numpy(c)]
-        s = score(torch.softmax(lg, 1).numpy(), y, c)
+        s = score(head_probabilities(load_orientation_net(w).module, x, c), y, c)
         print(f"| {w} | " + " | ".join(f"{100 * s[n]['within_45_deg']:.0f} % ({s[n]['crops']})" if n in s else ""
                                         for n in _classes()) + " |")
 

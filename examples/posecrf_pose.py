@@ -38,6 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 
 from panogeom.perspective import equirect_to_perspective  # noqa: E402
+from panogeom.rotation import angle_difference  # noqa: E402
 from panogeom.raycast import RenderMesh, pose_matrix, raycast_equirect, room_meshes, transform_mesh  # noqa: E402
 from posecrf.cache import library_renders  # noqa: E402
 from posecrf.crops import extract_crop  # noqa: E402
@@ -114,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
             out = estimate_poses(renders, cls, [i[2] for i in items], [i[3] for i in items])
             for (m, yaw, crop, mask, view), e in zip(items, out.estimates):
                 wy = e.world_yaw(view.direction)
-                err = abs((wy - yaw + math.pi) % (2 * math.pi) - math.pi)
+                err = float(angle_difference(wy, yaw))
                 print(f"{m.id:10} {math.degrees(yaw):9.1f} {math.degrees(wy):9.1f} {math.degrees(err):6.1f} "
                       f"{e.model_id:>9} {e.confidence:5.2f}")
                 rgb, _ = r.render(builtin_library()[e.model_id], e.yaw_rel, e.pitch)

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from panogeom.rotation import angle_difference
+
 __all__ = ["ObjectRecord", "ClassErrors", "match_objects", "yaw_error"]
 
 #: Classes without an orientation (CONVENTIONS.md).
@@ -64,18 +66,9 @@ class ClassErrors:
 
 
 def yaw_error(a: float | NDArray, b: float | NDArray, fold: int = 1) -> NDArray[np.float64]:
-    """Smallest angle between yaws ``a`` and ``b`` (radians), with ``fold``-fold symmetry.
-
-    Examples
-    --------
-    >>> round(float(np.rad2deg(yaw_error(np.deg2rad(350.0), np.deg2rad(10.0)))), 9)
-    20.0
-    >>> float(np.rad2deg(yaw_error(0.0, np.pi, fold=2)))
-    0.0
-    """
-    period = 2.0 * np.pi / fold
-    d = np.mod(np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64), period)
-    return np.minimum(d, period - d)
+    """Smallest angle between yaws ``a`` and ``b`` (radians), with ``fold``-fold symmetry: the orientation error
+    of Table 2 (:func:`panogeom.rotation.angle_difference`)."""
+    return angle_difference(a, b, fold)
 
 
 def match_objects(pred: Sequence[ObjectRecord], gt: Sequence[ObjectRecord], gate: float = 1.5

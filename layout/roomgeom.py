@@ -64,6 +64,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from panogeom.coords import DEFAULT_CAMERA_HEIGHT, pixel_to_lonlat
+from panogeom.rotation import angle_difference
 
 from .floorplan import FloorPlan, WallObservation, close_manhattan_polygon
 from .polygon import points_in_polygon, polygon_problems
@@ -756,7 +757,7 @@ def _robust_rectangle(obs: ColumnObservations, fit: _Residuals, ceiling_z: float
     lon, pts = obs.lon[m], obs.points[m]
     init = []
     for centre, k, sign in ((0.0, 0, 1), (np.pi / 2, 1, -1), (np.pi, 0, -1), (-np.pi / 2, 1, 1)):
-        sel = np.abs((lon - centre + np.pi) % (2 * np.pi) - np.pi) < np.pi / 4
+        sel = angle_difference(lon, centre) < np.pi / 4
         v = pts[sel, k]
         v = v[v * sign > 0]
         if v.size == 0:

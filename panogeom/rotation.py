@@ -37,6 +37,7 @@ __all__ = [
     "ypr_to_matrix",
     "matrix_to_ypr",
     "nearest_rotation",
+    "angle_difference",
 ]
 
 Array = NDArray[np.float64]
@@ -60,6 +61,22 @@ def check_rotation(R: ArrayLike, name: str = "rotation", atol: float = 1e-6) -> 
     if np.linalg.det(R) < 0:
         raise ValueError(f"{name}: expected a proper rotation (det +1), got a reflection (det -1)")
     return R
+
+
+def angle_difference(a: ArrayLike, b: ArrayLike, fold: int = 1) -> Array:
+    """Smallest angle between angles ``a`` and ``b`` (radians, broadcast), with ``fold``-fold symmetry: in
+    ``[0, pi / fold]``.
+
+    >>> round(float(np.rad2deg(angle_difference(np.deg2rad(350.0), np.deg2rad(10.0)))), 9)
+    20.0
+    >>> float(np.rad2deg(angle_difference(0.0, np.pi, fold=2)))
+    0.0
+    """
+    if int(fold) != fold or fold < 1:
+        raise ValueError(f"fold: expected an integer >= 1, got {fold!r}")
+    period = 2.0 * np.pi / int(fold)
+    d = np.mod(np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64), period)
+    return np.minimum(d, period - d)
 
 
 def rot_x(a: float) -> Array:

@@ -50,6 +50,7 @@ __all__ = [
     "orientation_costs",
     "save_weights",
     "bin_yaws",
+    "head_probabilities",
 ]
 
 #: Classes with a head (every asymmetric class of the builtin library).
@@ -163,13 +164,26 @@ class OrientationNet:
             raise ValueError(f"classes: no orientation head for {unknown}; known: {list(self.classes)}")
         if not crops:
             return np.zeros((0, self.n_bins))
-        torch = _torch()
-        x = torch.from_numpy(prepare_crops(crops))
-        with torch.no_grad():
-            logits = self.module(x)
-        idx = torch.tensor([self.classes.index(c) for c in classes])
-        sel = logits[torch.arange(len(crops)), idx]
-        return torch.softmax(sel.double(), dim=1).numpy()
+        return head_probabilities(self.module, prepare_crops(crops), [self.classes.index(c) for c in classes])
+
+
+def head_probabilities(module: Any, x: NDArray[np.float32], heads: ArrayLike, batch: int = 512) -> NDArray[np.float64]:
+    """Softmax of each prepared crop's logits under head ``heads[i]``: (N, n_bins), rows sum to 1.
+
+    ``module``: the network (:func:`build_network`, or :attr:`OrientationNet.module`); ``x``: (N, 3, S, S) float32
+    from :func:`prepare_crops`; ``heads``: (N,) int head indices. Evaluated without gradients, ``batch`` at a time.
+    """
+    torch = _torch()
+    h = np.asarray(heads, dtype=np.int64).reshape(-1)
+    if len(h) != len(x):
+        raise ValueError(f"heads: expected one per crop ({len(x)}), got {len(h)}")
+    out = []
+    with torch.no_grad():
+        for s in range(0, len(x), batch):
+            logits = module(torch.from_numpy(np.ascontiguousarray(x[s:s + batch])))
+            sel = logits[torch.arange(len(logits)), torch.from_numpy(h[s:s + batch])]
+            out.append(torch.softmax(sel.double(), dim=1).numpy())
+    return np.concatenate(out) if out else np.zeros((0, N_BINS))
 
 
 @lru_cache(maxsize=4)

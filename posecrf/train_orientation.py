@@ -33,8 +33,9 @@ import numpy as np
 
 from .crops import extract_crop, relative_yaw
 from panogeom.boxes import box_width
+from panogeom.rotation import angle_difference
 
-from .orientnet import N_BINS, ORIENT_CLASSES, bin_yaws, build_network, prepare_crops, save_weights
+from .orientnet import ORIENT_CLASSES, bin_yaws, build_network, head_probabilities, prepare_crops, save_weights
 
 __all__ = ["crops_from_rooms", "train", "score", "read_rgb", "main"]
 
@@ -104,7 +105,7 @@ def _soft_targets(yaw: np.ndarray, kappa: float) -> np.ndarray:
 def score(probs: np.ndarray, yaw: np.ndarray, cls: np.ndarray) -> dict:
     """Per class: crops, median angular error of the most likely bin (deg) and the share within 45 deg."""
     best = bin_yaws(probs.shape[1])[probs.argmax(axis=1)]
-    err = np.degrees(np.abs((best - yaw + math.pi) % (2.0 * math.pi) - math.pi))
+    err = np.degrees(angle_difference(best, yaw))
     out = {}
     for k, name in enumerate(ORIENT_CLASSES):
         m = cls == k
@@ -151,18 +152,6 @@ def train(x: np.ndarray, cls: np.ndarray, yaw: np.ndarray, epochs: int, batch: i
     return net
 
 
-def _probs(net, x: np.ndarray, cls: np.ndarray) -> np.ndarray:
-    import torch
-
-    out = []
-    with torch.no_grad():
-        for s in range(0, len(x), 512):
-            lg = net(torch.from_numpy(x[s:s + 512]))[torch.arange(len(x[s:s + 512])),
-                                                       torch.from_numpy(cls[s:s + 512])]
-            out.append(torch.softmax(lg, dim=1).numpy())
-    return np.concatenate(out) if out else np.zeros((0, N_BINS))
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m posecrf.train_orientation", description=__doc__.split("\n")[0])
     ap.add_argument("--rooms", required=True, help="folder of pano2cad synth rooms (room-*/pano.png, gt.json)")
@@ -192,7 +181,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(x)} training crops from {len(rooms) - n_val} rooms, {len(xv)} validation crops from {n_val} "
           f"rooms ({time.time() - t0:.0f} s)", flush=True)
     net = train(x, c, y, a.epochs, a.batch, a.lr, a.kappa, a.seed, log=lambda s: print(s, flush=True))
-    val = score(_probs(net, xv, cv), yv, cv)
+    val = score(head_probabilities(net, xv, cv), yv, cv)
     print(json.dumps(val, indent=1))
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)

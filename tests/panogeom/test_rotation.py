@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from panogeom.coords import ray_to_lonlat
 from panogeom.rotation import (
+    angle_difference,
     axis_angle_to_matrix,
     check_rotation,
     matrix_to_axis_angle,
@@ -124,3 +125,21 @@ def test_check_rotation_rejects(M, match):
 def test_bad_input_raises_with_a_message(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+@settings(max_examples=200, deadline=None)
+@given(a=st.floats(-20.0, 20.0), b=st.floats(-20.0, 20.0), fold=st.sampled_from([1, 2, 4]))
+def test_angle_difference_is_the_smallest_turn(a, b, fold):
+    d = float(angle_difference(a, b, fold))
+    period = 2 * np.pi / fold
+    assert 0.0 <= d <= period / 2 + 1e-12
+    # b turned by +-d (mod the period) lands on a
+    assert min(abs(wrapped(fold * (b + s * d - a))) for s in (1.0, -1.0)) < 1e-9 * fold
+
+
+def test_angle_difference_broadcasts_and_checks_fold():
+    out = angle_difference(np.deg2rad([[0.0], [90.0]]), np.deg2rad([180.0, 270.0, 5.0]))
+    assert out.shape == (2, 3)
+    assert np.allclose(np.rad2deg(out), [[180.0, 90.0, 5.0], [90.0, 180.0, 85.0]])
+    with pytest.raises(ValueError, match="fold"):
+        angle_difference(0.0, 1.0, fold=0)

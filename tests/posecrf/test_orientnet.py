@@ -16,6 +16,7 @@ from posecrf.orientnet import (
     N_BINS,
     ORIENT_CLASSES,
     build_network,
+    head_probabilities,
     load_orientation_net,
     orientation_costs,
     prepare_crops,
@@ -118,6 +119,24 @@ def test_save_and_load_round_trip(tmp_path):
     with torch.no_grad():
         want = torch.softmax(net(torch.from_numpy(prepare_crops([crop])))[0, 1].double(), 0).numpy()
     assert np.allclose(loaded.probabilities([crop], ["chair"])[0], want)
+
+
+def test_head_probabilities_batches_and_checks_heads():
+    import torch
+
+    torch.manual_seed(0)
+    net = build_network()
+    net.eval()
+    rng = np.random.default_rng(2)
+    x = prepare_crops([rng.integers(0, 255, (30 + 7 * k, 60, 3), dtype=np.uint8) for k in range(5)])
+    heads = np.array([0, 1, 2, 1, 0])
+    whole = head_probabilities(net, x, heads)
+    assert whole.shape == (5, N_BINS) and np.allclose(whole.sum(axis=1), 1.0)
+    assert np.allclose(head_probabilities(net, x, heads, batch=2), whole)
+    # each row is its own head's softmax: another head gives another distribution
+    assert not np.allclose(head_probabilities(net, x, np.roll(heads, 1))[1], whole[1])
+    with pytest.raises(ValueError, match="heads"):
+        head_probabilities(net, x, heads[:3])
 
 
 def test_soft_targets_peak_at_the_label():
