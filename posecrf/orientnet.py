@@ -167,7 +167,8 @@ class OrientationNet:
         return head_probabilities(self.module, prepare_crops(crops), [self.classes.index(c) for c in classes])
 
 
-def head_probabilities(module: Any, x: NDArray[np.float32], heads: ArrayLike, batch: int = 512) -> NDArray[np.float64]:
+def head_probabilities(module: Any, x: NDArray[np.float32], heads: ArrayLike,
+                       batch: int = 512) -> NDArray[np.float64]:
     """Softmax of each prepared crop's logits under head ``heads[i]``: (N, n_bins), rows sum to 1.
 
     ``module``: the network (:func:`build_network`, or :attr:`OrientationNet.module`); ``x``: (N, 3, S, S) float32
