@@ -16,7 +16,8 @@ rooms (checked: the same room names per set).
 
 ``--changed CLASS`` also prints (not into the docs) the rooms where the matched objects of CLASS differ between
 the first two variants: their position errors (cm) and orientation errors (deg) in each, rooms ordered by how
-much the summed position error grew.
+much the summed position error grew. ``--changed layout`` prints instead the rooms whose layout 3D IoU differs
+by more than 0.01, ordered by the change.
 """
 
 from __future__ import annotations
@@ -93,8 +94,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--heading", default="## Variants of the pipeline compared (compare_evals.py)",
                     help="the docs section ('## ...') the table goes to")
     ap.add_argument("--note", default="", help="a line written under the command in the docs section")
-    ap.add_argument("--changed", metavar="CLASS", help="print the rooms where CLASS differs between the first two "
-                                                        "variants")
+    ap.add_argument("--changed", metavar="CLASS", help="print the rooms where CLASS (or 'layout': the layout 3D IoU) "
+                                                        "differs between the first two variants")
     args = ap.parse_args(argv)
     variants, rooms = {}, None
     for spec in args.variants:
@@ -131,6 +132,8 @@ def changed_rooms(first: list[Path], second: list[Path], cls: str) -> list[str]:
                 out[f"{run.name}/{r['name']}"] = (r.get("objects") or {}).get(cls, {})
         return out
 
+    if cls == "layout":
+        return changed_layouts(first, second)
     a, b = per_room(first), per_room(second)
     rows = []
     for (name, x), y in zip(a.items(), b.values()):
@@ -142,6 +145,19 @@ def changed_rooms(first: list[Path], second: list[Path], cls: str) -> list[str]:
                          f"{[round(v) for v in ob]} deg"))
     return [f"{len(rows)} rooms where {cls} differs, by growth of the summed position error:"] + \
         [line for _, line in sorted(rows, key=lambda t: -t[0])]
+
+
+def changed_layouts(first: list[Path], second: list[Path], min_change: float = 0.01) -> list[str]:
+    """Lines ``room: 3D IoU a -> b`` where the layout 3D IoU moved by more than ``min_change`` (``--changed layout``)."""
+    def per_room(runs: list[Path]) -> dict[str, float]:
+        return {f"{run.name}/{r['name']}": float((r.get("layout") or {}).get("iou_3d", 0.0))
+                for run in runs for r in json.loads((run / "eval.json").read_text())["rooms"]}
+
+    # the variants ran on the same rooms in the same order (checked by main); names from the first variant
+    rows = sorted(((y - x, n, x, y) for (n, x), y in zip(per_room(first).items(), per_room(second).values())
+                   if abs(y - x) > min_change), reverse=True)
+    return [f"{len(rows)} rooms whose layout 3D IoU moved by more than {min_change}:"] + \
+        [f"{n}: 3D IoU {x:.3f} -> {y:.3f}" for _, n, x, y in rows]
 
 
 if __name__ == "__main__":

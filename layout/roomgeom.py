@@ -15,7 +15,10 @@ Two routes, one result (:class:`RoomGeometry`):
     boundary, ``d = (ceiling_z - camera_height) / tan(lat_c)``, averaged
     with the floor boundary's ``d = camera_height / tan(-lat_f)`` where the
     two agree; a floor boundary that disagrees is taken for furniture
-    (unless the agreeing columns nearby side with it), and used alone only
+    (unless the agreeing columns nearby side with it; optionally also where
+    the two boundaries disagree along most of that wall and the floor
+    boundary is the straighter wall there, :func:`_walls_off_ceiling`), and
+    used alone only
     where the ceiling boundary is not seen (:func:`observe_columns`). The
     wall label (3 or 4) of the column says which coordinate of the point
     ``d * (cos lon, -sin lon)`` is the wall's offset, overridden where the
@@ -91,7 +94,7 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 Method = Literal["columns", "pointcloud"]
-Prefer = Literal["ceiling", "floor"]
+Prefer = Literal["ceiling", "floor", "wall"]
 CeilingEstimate = Literal["lowest_mode", "median"]
 
 #: Walls are never closer than this to the camera, in camera heights (boundary at the horizon is no wall).
@@ -195,9 +198,10 @@ class ColumnObservations:
         0 for label 3 (x = const), 1 for label 4, -1 where unobserved.
     from_floor : (W,) bool
         The column's distance uses its floor contact (averaged with the
-        ceiling contact where both agree; with ``prefer="ceiling"`` a floor
-        contact that disagrees with the ceiling contact is taken for
-        furniture and not used).
+        ceiling contact where both agree; with ``prefer="ceiling"`` or
+        ``"wall"`` a floor contact that disagrees with the ceiling contact
+        is taken for furniture and not used, unless its neighbours or its
+        wall side with it).
     pixel_sigma : (W,) float
         How far, in metres, the wall offset read from the column moves when
         its boundary row moves by one pixel (``d(offset)/d(row)``).
@@ -253,10 +257,17 @@ def observe_columns(labels: ArrayLike, camera_height: float = DEFAULT_CAMERA_HEI
     min_purity : float
         Columns whose wall pixels are less than this fraction of one label
         are left unobserved.
-    prefer : {"ceiling", "floor"}
+    prefer : {"wall", "ceiling", "floor"}
         Which contact gives the distance where both are seen but disagree.
         ``"ceiling"`` (default): furniture hides or fakes the floor-wall
         boundary far more often than anything hides the ceiling-wall one.
+        ``"wall"``: the same, except on walls where the two contacts
+        disagree along most of the wall and the floor contact gives the
+        straighter wall (:func:`_walls_off_ceiling`: an estimated ceiling
+        label creeping down a shadowed wall), whose floor contacts are
+        trusted; better on the estimated labels of both tuning sets, but not
+        in the whole pipeline on both (docs/EVALUATION.md, session 15), so
+        not the default. ``"floor"``: the floor contact wherever it is seen.
     ceiling_estimate : {"lowest_mode", "median"}
         How the per-column wall-height ratios are combined:
         :func:`_ratio_mode` (default) or their plain median.
@@ -282,8 +293,10 @@ def observe_columns(labels: ArrayLike, camera_height: float = DEFAULT_CAMERA_HEI
     ceiling contact, ``d = (ceiling_z - camera_height) / tan(lat_c)``,
     averaged with the floor contact ``d = camera_height / tan(-lat_f)``
     where the two agree within a few pixel rows; a disagreeing floor
-    contact is used only where the ceiling contact is missing or the
-    agreeing columns nearby (``W / 64`` each side) side with it.
+    contact is used only where the ceiling contact is missing, the
+    agreeing columns nearby (``W / 64`` each side) side with it or (with
+    ``prefer="wall"``) most of its wall disagrees and the floor contacts
+    give the straighter wall.
 
     Convention: world frame of the module docstring, latitudes of
     :mod:`panogeom.coords`.
@@ -299,8 +312,8 @@ def observe_columns(labels: ArrayLike, camera_height: float = DEFAULT_CAMERA_HEI
     h_cam = float(camera_height)
     if not (np.isfinite(h_cam) and h_cam > 0):
         raise ValueError(f"camera_height: expected a positive finite height, got {camera_height!r}")
-    if prefer not in ("ceiling", "floor"):
-        raise ValueError(f"prefer: expected 'ceiling' or 'floor', got {prefer!r}")
+    if prefer not in ("ceiling", "floor", "wall"):
+        raise ValueError(f"prefer: expected 'ceiling', 'floor' or 'wall', got {prefer!r}")
     if ceiling_estimate not in ("lowest_mode", "median"):
         raise ValueError(f"ceiling_estimate: expected 'lowest_mode' or 'median', got {ceiling_estimate!r}")
     lab = check_label_map(labels)
@@ -343,7 +356,7 @@ def observe_columns(labels: ArrayLike, camera_height: float = DEFAULT_CAMERA_HEI
     with np.errstate(invalid="ignore"):
         d_both = (w_f * d_f + w_c * d_c) / (w_f + w_c)
         s_both = 1.0 / np.sqrt(w_f + w_c)
-    if prefer == "ceiling":
+    if prefer in ("ceiling", "wall"):
         # the ceiling contact is rarely occluded: a floor contact that disagrees with it is taken for furniture,
         # unless the columns nearby where both contacts agree side with the floor contact (a label blob on the
         # ceiling boundary)
@@ -353,6 +366,10 @@ def observe_columns(labels: ArrayLike, camera_height: float = DEFAULT_CAMERA_HEI
             warnings.simplefilter("ignore", RuntimeWarning)
             ref = np.nanmedian(np.stack([np.roll(trusted, k) for k in range(-half, half + 1)]), axis=0)
             floor_side = np.isfinite(ref) & (np.abs(np.log(d_f / ref)) < np.abs(np.log(d_c / ref)))
+        if prefer == "wall":
+            # (leaving such walls out of the wall height too was measured and not kept: no better on the tuning sets)
+            floor_side |= _walls_off_ceiling(ob.wall_label, direction, d_f, d_c, floor_ok & ceil_ok, agree,
+                                             max(4, w // 128))
         use_f = floor_ok & ~agree & (~ceil_ok | floor_side)
         dist = np.where(agree, d_both, np.where(use_f, d_f, np.where(ceil_ok, d_c, np.nan)))
         sig = np.where(agree, s_both, np.where(use_f, s_f, s_c))
@@ -376,6 +393,50 @@ def observe_columns(labels: ArrayLike, camera_height: float = DEFAULT_CAMERA_HEI
                               ceiling_support=int(used), boundaries=ob,
                               distance_sigma=np.where(axis >= 0, sig, np.nan),
                               weight=np.where(axis >= 0, weight, 0.0))
+
+
+def _circular_runs(key: NDArray[np.integer]) -> list[NDArray[np.intp]]:
+    """Index runs of equal values along a circular array, without the runs of negative values."""
+    n = key.size
+    start = np.flatnonzero(key != np.roll(key, 1))
+    if start.size == 0:
+        return [np.arange(n, dtype=np.intp)] if n and key[0] >= 0 else []
+    ends = np.roll(start, -1)
+    return [np.arange(a, b if b > a else b + n, dtype=np.intp) % n for a, b in zip(start, ends) if key[a] >= 0]
+
+
+def _walls_off_ceiling(wall_label: NDArray[np.uint8], direction: FloatArray, d_f: FloatArray, d_c: FloatArray,
+                       both: NDArray[np.bool_], agree: NDArray[np.bool_], min_columns: int,
+                       share: float = 0.5) -> NDArray[np.bool_]:
+    """Columns of walls whose floor contact is the straighter wall where it disagrees with the ceiling contact.
+
+    A wall is a circular run of one wall label (3 or 4; ``direction`` (W, 2)
+    the columns' horizontal ray directions). Where at least ``min_columns``
+    of its columns show both contacts (``both``) and more than ``share`` of
+    those disagree, the wall offsets read from the two contacts
+    (``|d * direction[axis]|``) are compared: a contact that follows the
+    wall gives one offset along it, a label edge that has left the wall
+    (a ceiling label creeping down a shadowed wall, a wall label climbing a
+    dark ceiling, furniture labelled floor) does not. Where the floor
+    contact's offsets spread less (median absolute deviation relative to
+    the median), the floor contacts of the wall are trusted over its
+    ceiling contacts.
+    """
+    out = np.zeros(wall_label.shape, dtype=bool)
+    key = np.where(np.isin(wall_label, (WALL_X, WALL_Y)), wall_label.astype(np.intp), -1)
+    for run in _circular_runs(key):
+        seen = run[both[run]]
+        if seen.size < min_columns or np.mean(~agree[seen]) <= share:
+            continue
+        comp = np.abs(direction[seen, 0 if key[run[0]] == WALL_X else 1])
+        spread = []
+        for d in (d_f[seen], d_c[seen]):
+            off = d * comp
+            med = np.median(off)
+            spread.append(np.median(np.abs(off - med)) / max(med, 1e-9))
+        if spread[0] < spread[1]:
+            out[run] = True
+    return out
 
 
 def _ratio_mode(ratio: FloatArray, bandwidth: float = 0.08, min_share: float = 0.1) -> tuple[float, int]:

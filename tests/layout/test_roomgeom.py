@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from layout.align import align_view_clouds
 from layout.corners import corners_px_to_polygon
 from layout.floorplan import WallObservation, close_manhattan_polygon, polygon_lines
-from layout.labelmap import FLOOR, UNKNOWN, WALL_X, WALL_Y, perturb_labels, render_room_labels, sample_camera_xy
+from layout.labelmap import CEILING, FLOOR, UNKNOWN, WALL_X, WALL_Y, perturb_labels, render_room_labels, sample_camera_xy
 from layout.metrics import iou_2d, iou_3d
 from layout.planefit import fit_manhattan_planes
 from layout.pointcloud import view_point_clouds
@@ -137,6 +137,63 @@ def test_furniture_hiding_the_wall_bottoms_uses_the_ceiling_contact():
     assert iou_2d(geo.floor, L_ROOM) > 0.97 and geo.n_corners == 6
     obs = observe_columns(hidden, 1.6)
     assert (~obs.from_floor & obs.observed).sum() > 500
+
+
+def _wall_columns(room, wall_x, width=1024):
+    """Columns (W,) bool whose ray from the origin meets the wall x = wall_x of ``room`` before any other wall."""
+    lon = observe_columns(render_room_labels(room, 2.8, [0.0, 0.0], 1.6, width), 1.6).lon
+    direction = np.stack([np.cos(lon), -np.sin(lon)], axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        y_hit = wall_x * direction[:, 1] / direction[:, 0]
+    ys = room[np.isclose(room[:, 0], wall_x), 1]
+    return (direction[:, 0] * wall_x > 0) & (y_hit > ys.min() + 0.05) & (y_hit < ys.max() - 0.05)
+
+
+def _ceiling_creeping_down_one_wall(room, wall_x, rows_down=12):
+    """Labels of ``room`` with the ceiling label reaching ``rows_down`` rows down the wall x = wall_x."""
+    lab = render_room_labels(room, 2.8, [0.0, 0.0], 1.6, 1024)
+    cols = _wall_columns(room, wall_x)
+    cv = observe_columns(lab, 1.6).boundaries.ceil_v
+    rows = np.arange(512)[:, None]
+    crept = lab.copy()
+    crept[(rows < cv + rows_down) & cols[None, :]] = CEILING
+    return crept, cols
+
+
+def test_a_ceiling_label_creeping_down_a_whole_wall_leaves_that_wall_to_its_floor_contact():
+    # a shadowed wall whose upper part the labeller calls ceiling: along the whole wall the ceiling contact says
+    # "farther" and the straight floor contact (seen all along) disagrees; with prefer="wall" the wall keeps it
+    # (the wall height from the median ratio, as the pipeline with objects masked: the crept wall's ratios are a
+    # mode of their own, and the lowest one, which would fool the lowest-mode estimate)
+    crept, cols = _ceiling_creeping_down_one_wall(RECT, 3.0)
+    assert 100 < cols.sum() < 400
+    obs = observe_columns(crept, 1.6, ceiling_estimate="median", prefer="wall")
+    assert np.allclose(obs.points[cols, 0], 3.0, atol=0.05) and obs.from_floor[cols].all()
+    geo = estimate_room_geometry(crept, 1.6, ceiling_estimate="median", prefer="wall")
+    assert geo.n_corners == 4 and iou_3d(geo.floor, geo.ceiling_z, RECT, 2.8) > 0.97
+    _assert_valid(geo)
+    # trusting the ceiling contact first (the default), the wall moves out
+    old = observe_columns(crept, 1.6, ceiling_estimate="median")
+    assert np.median(old.points[cols, 0]) > 3.3
+
+
+def test_prefer_wall_keeps_furniture_along_a_whole_wall_out():
+    # a long sideboard labelled floor along the whole wall x = 3: the floor label climbs to a row of constant
+    # height (a box top), whose distances are a circle, not the straight wall of the ceiling contact; the
+    # whole-wall vote leaves that wall to the ceiling contact
+    lab = render_room_labels(L_ROOM, 2.8, [0.0, 0.0], 1.6, 1024)
+    cols = _wall_columns(L_ROOM, 3.0)
+    fv = observe_columns(lab, 1.6).boundaries.floor_v
+    top = fv[cols].min() - 0.3 * (fv[cols].min() - 256)
+    rows = np.arange(512)[:, None]
+    furnished = lab.copy()
+    furnished[(rows >= top) & (rows < fv + 2) & cols] = FLOOR
+    obs = observe_columns(furnished, 1.6, prefer="wall")
+    assert cols.sum() > 60 and not obs.from_floor[cols].any()
+    assert np.median(obs.points[cols, 0]) == pytest.approx(3.0, abs=0.05)
+    geo = estimate_room_geometry(furnished, 1.6, prefer="wall")
+    assert geo.n_corners == 6 and iou_3d(geo.floor, geo.ceiling_z, L_ROOM, 2.8) > 0.97
+    _assert_valid(geo)
 
 
 LEGACY = dict(prefer="floor", shape_axis=False, ceiling_estimate="median", robust=False)
