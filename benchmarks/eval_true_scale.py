@@ -13,9 +13,11 @@ distance in both cases, without a distance gate (so the means are larger than th
 leaves far pairs unmatched). Printed per class: pairs, mean and median error as estimated and at the true scale.
 A run with the scale given (``--camera-height``, ``--gt-scale``) shows no difference.
 
-Also printed, per set: the mean wall-height error of answering one constant wall height for every room
-(``--constant-wall``, default 2.7 m, the mean of the generator's N(2.7, 0.2) m; paper Sec. 5), the floor any
-scale estimate has to beat.
+Also printed, per set: the layout 3D IoU of the rooms (:func:`layout.metrics.score_layout`, as ``pano2cad eval``)
+as estimated and with the room (floor polygon and ceiling) scaled the same way, with the camera height's relative
+error (median, mean, rooms more than 5 % off): what the scale alone costs the layout; and the mean wall-height
+error of answering one constant wall height for every room (``--constant-wall``, default 2.7 m, the mean of the
+generator's N(2.7, 0.2) m; paper Sec. 5), the floor any scale estimate has to beat.
 """
 
 from __future__ import annotations
@@ -27,18 +29,22 @@ from pathlib import Path
 from typing import Iterator
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
 CLASSES = ("bed", "chair", "tv", "plant")
+FloatArray = NDArray[np.float64]
+
+
+def room_dirs(data: Path, run: Path, scene: str = "scene.json") -> list[Path]:
+    """The room folders of ``run`` holding ``scene`` whose room has a gt.json in ``data``, sorted."""
+    return sorted(p for p in run.iterdir() if (p / scene).is_file() and (data / p.name / "gt.json").is_file())
 
 
 def scaled_rooms(data: Path, run: Path, scene: str = "scene.json") -> Iterator[tuple[dict, dict, float]]:
-    """Per room of ``run`` with a gt.json in ``data``: (gt, predicted scene, true / estimated camera height)."""
-    for room in sorted(p for p in run.iterdir() if (p / scene).is_file()):
-        gt_file = data / room.name / "gt.json"
-        if not gt_file.is_file():
-            continue
-        gt = json.loads(gt_file.read_text())
+    """Per room of :func:`room_dirs`: (gt, predicted scene, true / estimated camera height)."""
+    for room in room_dirs(data, run, scene):
+        gt = json.loads((data / room.name / "gt.json").read_text())
         sc = json.loads((room / scene).read_text())
         yield gt, sc, float(gt["camera_height_m"]) / float(sc["camera"]["height_m"])
 
@@ -73,6 +79,25 @@ def position_errors(data: Path, run: Path, scene: str = "scene.json") -> dict[st
     return out
 
 
+def layout_at_true_scale(data: Path, run: Path, scene: str = "scene.json") -> dict[str, FloatArray]:
+    """Per room with a scene (R rooms): ``iou_est`` and ``iou_true`` (R,), the 3D IoU as estimated and at the true
+    scale; ``camera`` (R,), the camera height's relative error ``estimated / true - 1``; ``ratio`` (R,), that of the
+    wall-to-camera-height ratio (which no scale changes)."""
+    from layout.metrics import score_layout
+
+    rows: dict[str, list] = defaultdict(list)
+    for gt, sc, k in scaled_rooms(data, run, scene):
+        floor, ceil = np.asarray(sc["room"]["floor"], dtype=np.float64), float(sc["room"]["ceiling_z"])
+        g_floor, g_ceil = gt["room"]["floor"], float(gt["room"]["ceiling_z"])
+        for key, s in (("iou_est", 1.0), ("iou_true", k)):
+            rows[key].append(score_layout(s * floor, s * ceil, g_floor, g_ceil,
+                                          camera_height=float(gt["camera_height_m"]),
+                                          width=int(gt["image"]["width"])).iou_3d)
+        rows["camera"].append(1.0 / k - 1.0)
+        rows["ratio"].append(ceil / float(sc["camera"]["height_m"]) / (g_ceil / float(gt["camera_height_m"])) - 1.0)
+    return {key: np.array(v) for key, v in rows.items()}
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--constant-wall", type=float, default=2.7, help="the constant wall height guessed, metres")
@@ -90,6 +115,23 @@ def main(argv: list[str] | None = None) -> int:
         if a.size:
             print(f"| {c} | {a.size} | {100 * a.mean():.1f} / {100 * np.median(a):.1f} | "
                   f"{100 * b.mean():.1f} / {100 * np.median(b):.1f} |")
+    per_set: dict[str, tuple[list[Path], dict[str, FloatArray]]] = {}
+    print("\n| set | rooms | layout 3D IoU estimated: mean / median | at the true scale: mean / median | "
+          "camera height error: median / mean | rooms > 5 % |\n|---|---:|---:|---:|---:|---:|")
+    for d, r in zip(data, runs):
+        lay = layout_at_true_scale(d, r, args.scene)
+        est, true, a = lay["iou_est"], lay["iou_true"], np.abs(lay["camera"]) if lay else np.zeros(0)
+        if est.size:
+            print(f"| {d} | {est.size} | {est.mean():.3f} / {np.median(est):.3f} | {true.mean():.3f} / "
+                  f"{np.median(true):.3f} | {100 * np.median(a):.1f} % / {100 * a.mean():.1f} % | "
+                  f"{int(np.count_nonzero(a > 0.05))} |")
+            per_set[str(r)] = (room_dirs(d, r, args.scene), lay)
+    print("\nrooms whose camera height is more than 5 % off: camera height error, wall-to-camera-height ratio error, "
+          "3D IoU estimated -> at the true scale")
+    for run_name, (dirs, lay) in per_set.items():
+        for k in np.flatnonzero(np.abs(lay["camera"]) > 0.05):
+            print(f"    {run_name}/{dirs[k].name}: camera {100 * lay['camera'][k]:+.1f} %, ratio "
+                  f"{100 * lay['ratio'][k]:+.1f} %, 3D IoU {lay['iou_est'][k]:.3f} -> {lay['iou_true'][k]:.3f}")
     for d in data:
         walls = np.array([json.loads(f.read_text())["room"]["ceiling_z"] for f in sorted(d.glob("*/gt.json"))])
         if walls.size:

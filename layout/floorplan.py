@@ -16,6 +16,11 @@ Manhattan polygon with any number of corners:
 * walls shorter than ``min_wall`` (noise, or a corner a few columns off)
   are removed and their two parallel neighbours merged, keeping the better
   supported offset.
+* a wall seen up to the ray through an occluding corner goes on behind it
+  (generic viewpoint: a room does not turn exactly on that ray): the
+  inferred line through its far end moves onto the nearest farther parallel
+  wall line of the polygon, where the result is valid and every observed
+  wall stays the first one its rays meet (:func:`_extend_far_ends`).
 
 The result is validated (:func:`layout.polygon.polygon_problems` and the
 camera strictly inside); if closing fails, the weakest walls are dropped
@@ -34,7 +39,7 @@ Convention:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Sequence
 
 import numpy as np
@@ -152,6 +157,7 @@ class _Line:
     support: int
     lon_start: float | None = None
     lon_end: float | None = None
+    through_far_end: bool = False  # inferred through the far end of a wall seen up to an occluding corner
 
 
 def _lon_of(p: FloatArray) -> float:
@@ -257,8 +263,9 @@ def _complete(walls: list[_Line], corner_tol: float) -> list[_Line]:
             rel = _wrap(_lon_of(corner) - float(a.lon_end)) if np.any(corner) else np.inf
             if min(gap, 0.0) - corner_tol <= rel <= max(gap, 0.0) + corner_tol:
                 continue  # the two walls meet at their corner
-            out.append(_Line(1 - a.axis, float(pa[1 - a.axis]), 0))
-            out.append(_Line(1 - b.axis, float(pb[1 - b.axis]), 0))
+            a_far = bool(np.hypot(*pa) > np.hypot(*pb))
+            out.append(_Line(1 - a.axis, float(pa[1 - a.axis]), 0, through_far_end=a_far))
+            out.append(_Line(1 - b.axis, float(pb[1 - b.axis]), 0, through_far_end=not a_far))
         else:
             near = pa if np.hypot(*pa) <= np.hypot(*pb) else pb
             out.append(_Line(1 - a.axis, float(near[1 - a.axis]), 0))
@@ -436,4 +443,78 @@ def _try_close(walls: Sequence[WallObservation], corner_tol: float, merge_tol: f
     poly, axis, support = _polygon_from_lines(lines)
     if _problems(poly, max_range):
         return None
-    return poly, axis, support
+    lines = _extend_far_ends(lines, walls, merge_tol, min_wall, max_range)
+    return _polygon_from_lines(lines)
+
+
+def _first_hits(poly: FloatArray, lons: FloatArray) -> tuple[NDArray[np.intp], FloatArray]:
+    """The polygon wall each horizontal ray from the camera meets first.
+
+    ``poly`` (N, 2) axis-aligned, ``lons`` (M,) viewing angles; returns the
+    axis (M,) and offset (M,) of the first wall hit (axis -1 where none is).
+    """
+    d = lonlat_to_ray(np.stack([lons, np.zeros_like(lons)], axis=-1))[:, :2]  # (M, 2)
+    a, b = poly, np.roll(poly, -1, axis=0)
+    ax = np.where(np.abs(a[:, 0] - b[:, 0]) <= np.abs(a[:, 1] - b[:, 1]), 0, 1)  # x = const edges are axis 0
+    c = a[np.arange(len(a)), ax]  # (N,) edge offsets
+    lo = np.minimum(a[np.arange(len(a)), 1 - ax], b[np.arange(len(a)), 1 - ax])
+    hi = np.maximum(a[np.arange(len(a)), 1 - ax], b[np.arange(len(a)), 1 - ax])
+    dn = d[:, ax]  # (M, N) ray component along each edge's normal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = c[None, :] / dn
+    o = t * d[:, 1 - ax]
+    ok = (np.abs(dn) > 1e-12) & (t > 1e-9) & (o >= lo[None, :] - 1e-9) & (o <= hi[None, :] + 1e-9)
+    t = np.where(ok, t, np.inf)
+    k = np.argmin(t, axis=1)
+    hit = np.isfinite(t[np.arange(len(lons)), k])
+    return np.where(hit, ax[k], -1), np.where(hit, c[k], np.nan)
+
+
+def _visibility_misses(poly: FloatArray, walls: Sequence[WallObservation], tol: float, n: int = 12) -> int:
+    """Rays of the observed walls (``n`` each) on which the polygon's first wall is not the observed one."""
+    seen = [w for w in walls if w.support > 0]
+    if not seen:
+        return 0
+    f = (np.arange(n) + 0.5) / n
+    lons = np.concatenate([w.lon_start + f * (w.lon_end - w.lon_start) for w in seen])
+    axis = np.repeat([w.axis for w in seen], n)
+    off = np.repeat([w.offset for w in seen], n)
+    hit_axis, hit_off = _first_hits(poly, lons)
+    return int(np.count_nonzero((hit_axis != axis) | ~(np.abs(hit_off - off) <= tol)))
+
+
+def _extend_far_ends(lines: list[_Line], walls: Sequence[WallObservation], merge_tol: float, min_wall: float,
+                     max_range: float | None) -> list[_Line]:
+    """Continue walls hidden behind an occluding corner to a wall line seen elsewhere (generic viewpoint).
+
+    Completing two perpendicular walls that do not meet through both end points
+    puts a corner exactly where the farther wall passes out of sight: the room
+    would have to turn precisely on the viewing ray through the occluding
+    corner. Rather, the farther wall goes on behind the occluder. The inferred
+    line through its far end moves, farther from the camera, onto the nearest
+    parallel line of an observed wall for which the polygon stays valid and
+    every observed wall stays the first wall on its rays
+    (:func:`_visibility_misses` no worse); with no such line it stays put.
+    """
+    tol = max(merge_tol, 1e-6)
+    seen = [w for w in walls if w.support > 0]
+    for k in range(len(lines)):
+        ln = lines[k]
+        if not ln.through_far_end:
+            continue
+        base = _polygon_from_lines(lines)[0]
+        base_misses = _visibility_misses(base, walls, tol)
+        sign = np.sign(ln.offset)
+        offs = [w.offset for w in seen if w.axis == ln.axis] + [m.offset for m in lines if m.axis == ln.axis]
+        cands = sorted({round(o, 9) for o in offs if np.sign(o) == sign and abs(o) > abs(ln.offset) + tol}, key=abs)
+        for off in cands:
+            trial = list(lines)
+            trial[k] = replace(ln, offset=float(off), through_far_end=False)
+            trial = _drop_short(trial, min_wall)
+            if len(trial) < 4:
+                continue
+            poly = _polygon_from_lines(trial)[0]
+            if _problems(poly, max_range) or _visibility_misses(poly, walls, tol) > base_misses:
+                continue
+            return _extend_far_ends(trial, walls, merge_tol, min_wall, max_range)
+    return lines

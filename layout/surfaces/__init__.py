@@ -9,6 +9,10 @@
   (with the shape of the floor and ceiling boundaries) decides the wall
   orientation, per column; unknown where both are unsure; objects masked
   (:func:`estimate_surfaces`).
+- :mod:`layout.surfaces.boundary`: the ceiling-wall boundary moved onto the
+  strongest smooth image edge near it, a Viterbi path across the columns
+  (:func:`ceiling_edge_path`, :func:`move_ceiling_boundary`; optional
+  step 6 of :func:`estimate_surfaces`, ``snap_ceiling=True``).
 - :mod:`layout.surfaces.overlay`: colour-coded labels blended on the
   panorama (:func:`label_overlay`, :func:`surfaces_figure`).
 
@@ -18,6 +22,7 @@ axes of the rectified (Manhattan-aligned) frame; the pixel geometry of the
 panorama the labels are computed on.
 """
 
+from .boundary import ceiling_edge_path, edge_strength, move_ceiling_boundary
 from .fusion import ColumnLayout, SurfaceLabels, boxes_to_mask, estimate_surfaces, fuse_surfaces
 from .gc_net import GC_CLASSES, GeometricContext, gc_probabilities, load_gc_net
 from .orientation_map import OrientationMap, orientation_map
@@ -31,12 +36,15 @@ __all__ = [
     "OrientationMap",
     "SurfaceLabels",
     "boxes_to_mask",
+    "ceiling_edge_path",
+    "edge_strength",
     "estimate_surfaces",
     "fuse_surfaces",
     "gc_overlay",
     "gc_probabilities",
     "label_overlay",
     "load_gc_net",
+    "move_ceiling_boundary",
     "orientation_map",
     "surfaces_figure",
 ]

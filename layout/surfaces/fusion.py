@@ -40,6 +40,15 @@ decides which way a wall faces. :func:`estimate_surfaces` goes:
    below ``min_confidence`` and the OM does not give the pixel the same
    label. Object regions are 5.
 
+6. **Ceiling boundary on the image's edge** (:mod:`layout.surfaces.boundary`,
+   optional, off by default): each column's ceiling-wall boundary moves to the strongest vertical
+   grey-level step within a few rows, along a smooth path across the
+   columns (a Viterbi pass); GC alone lets the ceiling label creep down a
+   shadowed wall. ``snap_ceiling=True`` runs it. It gives better labels
+   and a better room at the true scale, but in the whole pipeline the two
+   tuning sets disagree on the layout (docs/EVALUATION.md, "Sessions 16-17
+   on the tuning sets"), so it is not the default.
+
 The clutter-free ``layout`` map fills the floor and ceiling boundaries hidden
 by clutter from the fitted column states (the wall model of step 4), giving
 the room's structure at every pixel.
@@ -54,7 +63,7 @@ labels". Rows ``v`` are continuous pixel coordinates; a boundary between rows
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -63,6 +72,7 @@ from panogeom.coords import pixel_to_lonlat
 from panogeom.lines import LineSegments
 
 from ._checks import pixel_mask, rgb_pano
+from .boundary import ceiling_edge_path, edge_strength, move_ceiling_boundary
 from .gc_net import GC_CEILING, GC_CLUTTER, GC_FLOOR, GC_WALL, GeometricContext, load_gc_net
 from .orientation_map import OrientationMap, orientation_map
 
@@ -531,7 +541,8 @@ def _upright_axes(axes: ArrayLike | None) -> NDArray[np.float64]:
 def estimate_surfaces(pano: ArrayLike, segments: LineSegments | None = None, axes: ArrayLike | None = None,
                       object_mask: ArrayLike | None = None, object_boxes: ArrayLike | None = None, *,
                       gc: GeometricContext | None = None, om_width: int = 512,
-                      min_confidence: float = 0.5, min_segments: int = 12) -> SurfaceLabels:
+                      min_confidence: float = 0.5, min_segments: int = 12,
+                      snap_ceiling: bool = False) -> SurfaceLabels:
     """Per-pixel surface labels of an upright panorama: GC + OM, fused (paper Sec. 3.1).
 
     Parameters
@@ -560,6 +571,10 @@ def estimate_surfaces(pano: ArrayLike, segments: LineSegments | None = None, axe
         With fewer segments assigned to the Manhattan directions the OM is
         not used (a warning says so); the labels still come from GC and the
         boundary shape.
+    snap_ceiling : bool
+        Move the ceiling-wall boundary onto the strongest smooth image edge
+        within a few rows (step 6 of the module docstring,
+        :mod:`layout.surfaces.boundary`). Off by default.
 
     Returns
     -------
@@ -595,4 +610,12 @@ def estimate_surfaces(pano: ArrayLike, segments: LineSegments | None = None, axe
                     f"floor and ceiling boundary shape")
         om = OrientationMap(labels=np.zeros((H, W), np.uint8), confidence=np.zeros((H, W), np.float32),
                             support=np.zeros((H, W, 3), np.float32), n_segments=om.n_segments)
-    return fuse_surfaces(probs, om, A, obj, min_confidence=min_confidence, warnings=tuple(warn))
+    fused = fuse_surfaces(probs, om, A, obj, min_confidence=min_confidence, warnings=tuple(warn))
+    if not snap_ceiling:
+        return fused
+    # step 6: the ceiling-wall boundary moved onto the image's edge (layout.surfaces.boundary)
+    cols = fused.columns
+    new_v = ceiling_edge_path(edge_strength(img, fused.labels.shape), cols.ceiling_v)
+    return replace(fused, labels=move_ceiling_boundary(fused.labels, new_v, cols.wall_label),
+                   layout=move_ceiling_boundary(fused.layout, new_v, cols.wall_label),
+                   columns=replace(cols, ceiling_v=new_v))

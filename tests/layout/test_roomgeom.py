@@ -59,6 +59,23 @@ def test_closing_completes_a_hidden_wall_through_the_occluding_corner():
     _assert_valid(geo)
 
 
+@pytest.mark.parametrize("room", [
+    # U room: the notch's corner (-1.8, -1.1) hides the far end of the left arm
+    [[2.2, 0.8], [-3.9, 0.8], [-3.9, -5.4], [-1.8, -5.4], [-1.8, -1.1], [0.3, -1.1], [0.3, -5.4], [2.2, -5.4]],
+    # C room: the corner (-1.1, -3.6) hides the lower arm's far half
+    [[-1.1, -1.8], [-1.1, -3.6], [-6.1, -3.6], [-6.1, -6.3], [1.4, -6.3], [1.4, 0.9], [-6.1, 0.9], [-6.1, -1.8]],
+])
+def test_a_wall_passing_out_of_sight_goes_on_behind_the_occluder(room):
+    # the wall seen up to the ray through an occluding corner continues to a wall line seen elsewhere (generic
+    # viewpoint); closing it on that ray, as before session 16, gave 3D IoU 0.78 and 0.74 on such rooms
+    room = np.array(room)
+    lab = render_room_labels(room, 2.6, [0.0, 0.0], 1.5, 1024)
+    geo = estimate_room_geometry(lab, 1.5)
+    _assert_valid(geo)
+    assert geo.n_corners == 8
+    assert iou_3d(geo.floor, geo.ceiling_z, room, 2.6) > 0.97
+
+
 def test_closing_falls_back_to_a_rectangle_with_one_wall():
     plan = close_manhattan_polygon([WallObservation(0, 2.0, -0.5, 0.5, 40)], points=[[2.0, -1.0], [2.0, 1.0]])
     assert plan.uncertain and any("bounding rectangle" in r for r in plan.reasons)
