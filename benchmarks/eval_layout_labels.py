@@ -12,7 +12,13 @@ room step's default) and the pipeline's ``label_ids.png`` of the run
 (median ceiling, what the pipeline uses when objects are masked). The 3D IoU
 of both against gt.json (:func:`layout.metrics.score_layout`; a room the room
 step cannot solve scores 0 and is listed) separates the labeller's share of
-the layout error from the room step's. The run's label
+the layout error from the room step's.
+
+On the generator's labels, the rooms the room step gets worst are listed
+(``--worst``) with their corner counts and the columns where floor that the
+labels show (unmasked floor pixels) lies beyond the polygon's wall, by more
+than 5 % + 5 cm (:func:`floor_beyond`): where there is none, the polygon
+agrees with every floor pixel and what it misses no floor pixel shows. The run's label
 maps are in its rectified frame, which for the upright synthetic panoramas is
 the input's to a fraction of a degree.
 """
@@ -26,6 +32,21 @@ from pathlib import Path
 import numpy as np
 
 
+def floor_beyond(labels: np.ndarray, mask: np.ndarray | None, floor: np.ndarray, camera_height: float) -> int:
+    """Columns of ``labels`` (H, W) whose farthest unmasked floor pixel lies beyond the wall of ``floor`` (K, 2)
+    in that column (horizontal distance more than 5 % + 5 cm past it), camera at the origin."""
+    from layout.labelmap import room_boundaries
+    from panogeom.coords import pixel_to_lonlat
+
+    h, w = labels.shape
+    seen = (labels == 1) if mask is None else (labels == 1) & ~mask
+    top = np.argmax(seen, axis=0).astype(np.float64)  # (W,) first floor row from the top: the farthest
+    lat = pixel_to_lonlat(np.stack([np.arange(w) + 0.5, top + 0.5], axis=-1), w, h)[:, 1]
+    far = camera_height / np.tan(np.maximum(-lat, 1e-6))
+    wall = room_boundaries(floor, 2.0 * camera_height, [0.0, 0.0], camera_height, w).distance
+    return int(np.count_nonzero(seen.any(axis=0) & (far > 1.05 * wall + 0.05)))
+
+
 def main(argv: list[str] | None = None) -> int:
     from PIL import Image
 
@@ -36,7 +57,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("data", type=Path, help="synthetic set (pano2cad synth output)")
     ap.add_argument("run", type=Path, help="pano2cad eval output on it (label_ids.png per room)")
-    ap.add_argument("--worst", type=int, default=8, help="list the rooms the labels cost most")
+    ap.add_argument("--worst", type=int, default=8,
+                    help="list the rooms the labels cost most, and the rooms worst on the generator's labels")
     args = ap.parse_args(argv)
     rows, unsolved = [], []
     for room in sorted(p for p in args.data.iterdir() if (p / "gt.json").is_file()):
@@ -46,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
         gt = json.loads((room / "gt.json").read_text())
         h = float(gt["camera_height_m"])
         boxes = np.array([o["bbox_pano"] for o in gt["objects"] if o.get("bbox_pano")], float).reshape(-1, 4)
-        ious = []
+        ious, extra = [], ()
         for path, ceiling in ((room / "labels.png", "lowest_mode"), (pred, "median")):
             lab = np.array(Image.open(path))
             s = lab.shape[1] / float(gt["image"]["width"])
@@ -60,17 +82,24 @@ def main(argv: list[str] | None = None) -> int:
             sc = score_layout(g.floor, float(g.ceiling_z), gt["room"]["floor"], float(gt["room"]["ceiling_z"]),
                               camera_height=h, width=lab.shape[1])
             ious.append(sc.iou_3d)
-        rows.append((room.name, *ious))
+            if path.name == "labels.png":
+                extra = (len(g.floor), len(gt["room"]["floor"]), floor_beyond(lab, mask, np.asarray(g.floor), h))
+        rows.append((room.name, *ious, *extra))
     if not rows:
         raise SystemExit(f"{args.run}: no label_ids.png of the rooms of {args.data}")
-    a = np.array([r[1:] for r in rows], float)
+    a = np.array([r[1:3] for r in rows], float)
     print(f"{len(rows)} rooms, true camera height, gt boxes masked: mean 3D IoU on ground-truth labels "
           f"{a[:, 0].mean():.3f} (median {np.median(a[:, 0]):.3f}), on the run's labels {a[:, 1].mean():.3f} "
           f"(median {np.median(a[:, 1]):.3f})")
     gap = sorted(rows, key=lambda r: r[2] - r[1])[: args.worst]
     if unsolved:
         print(f"not solved by the room step (scored 0): {', '.join(unsolved)}")
-    print("largest losses to the labels: " + "; ".join(f"{n} {g:.2f} -> {p:.2f}" for n, g, p in gap))
+    print("largest losses to the labels: " + "; ".join(f"{r[0]} {r[1]:.2f} -> {r[2]:.2f}" for r in gap))
+    solved = [r for r in rows if len(r) > 3]
+    beyond = [r for r in solved if r[5] > 0]
+    print(f"generator's labels: {len(beyond)} of {len(solved)} rooms leave floor the labels show outside the polygon; "
+          "worst rooms (3D IoU, corners ours / gt, columns of floor beyond): " + "; ".join(
+              f"{r[0]} {r[1]:.2f} {r[3]}/{r[4]} {r[5]}" for r in sorted(solved, key=lambda r: r[1])[: args.worst]))
     return 0
 
 
