@@ -120,8 +120,8 @@ def main(argv: list[str] | None = None) -> int:
           "camera height error: median / mean | rooms > 5 % |\n|---|---:|---:|---:|---:|---:|")
     for d, r in zip(data, runs):
         lay = layout_at_true_scale(d, r, args.scene)
-        est, true, a = lay["iou_est"], lay["iou_true"], np.abs(lay["camera"]) if lay else np.zeros(0)
-        if est.size:
+        if lay:  # empty where the run has no scene of the set's rooms
+            est, true, a = lay["iou_est"], lay["iou_true"], np.abs(lay["camera"])
             print(f"| {d} | {est.size} | {est.mean():.3f} / {np.median(est):.3f} | {true.mean():.3f} / "
                   f"{np.median(true):.3f} | {100 * np.median(a):.1f} % / {100 * a.mean():.1f} % | "
                   f"{int(np.count_nonzero(a > 0.05))} |")
