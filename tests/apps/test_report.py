@@ -242,10 +242,18 @@ class _CountingProxy:
                 continue
             with conn:
                 conn.settimeout(1.0)
-                try:
-                    self.requests.append(conn.recv(200))
+                data = b""
+                try:  # up to the end of the request line, which may come in several segments
+                    while b"\r\n" not in data and len(data) < 8192:
+                        chunk = conn.recv(4096)
+                        if not chunk:
+                            break
+                        data += chunk
                 except OSError:
-                    self.requests.append(b"")
+                    pass
+                # a connection that sends nothing (Chromium opens spare sockets to its proxy) carries no request
+                if data:
+                    self.requests.append(data)
 
     def close(self):
         self._stop.set()
