@@ -16,8 +16,8 @@ the layout error from the room step's.
 
 On the generator's labels, the rooms the room step gets worst are listed
 (``--worst``) with their corner counts and the columns where floor that the
-labels show (unmasked floor pixels) lies beyond the polygon's wall, by more
-than 5 % + 5 cm (:func:`floor_beyond`): where there is none, the polygon
+labels show (unmasked floor pixels) lies beyond the polygon's wall, more
+than 2 rows above its floor boundary (:func:`floor_beyond`): where there is none, the polygon
 agrees with every floor pixel and what it misses no floor pixel shows. The run's label
 maps are in its rectified frame, which for the upright synthetic panoramas is
 the input's to a fraction of a degree.
@@ -32,19 +32,17 @@ from pathlib import Path
 import numpy as np
 
 
-def floor_beyond(labels: np.ndarray, mask: np.ndarray | None, floor: np.ndarray, camera_height: float) -> int:
-    """Columns of ``labels`` (H, W) whose farthest unmasked floor pixel lies beyond the wall of ``floor`` (K, 2)
-    in that column (horizontal distance more than 5 % + 5 cm past it), camera at the origin."""
+def floor_beyond(labels: np.ndarray, mask: np.ndarray | None, floor: np.ndarray, ceiling_z: float,
+                 camera_height: float, rows: float = 2.0) -> int:
+    """Columns of ``labels`` (H, W) with an unmasked floor pixel more than ``rows`` rows above the floor-wall
+    boundary of the room ``floor`` (K, 2), ``ceiling_z`` (:func:`layout.labelmap.room_boundaries`, camera at the
+    origin): floor the labels show beyond the polygon's wall."""
     from layout.labelmap import room_boundaries
-    from panogeom.coords import pixel_to_lonlat
 
-    h, w = labels.shape
     seen = (labels == 1) if mask is None else (labels == 1) & ~mask
-    top = np.argmax(seen, axis=0).astype(np.float64)  # (W,) first floor row from the top: the farthest
-    lat = pixel_to_lonlat(np.stack([np.arange(w) + 0.5, top + 0.5], axis=-1), w, h)[:, 1]
-    far = camera_height / np.tan(np.maximum(-lat, 1e-6))
-    wall = room_boundaries(floor, 2.0 * camera_height, [0.0, 0.0], camera_height, w).distance
-    return int(np.count_nonzero(seen.any(axis=0) & (far > 1.05 * wall + 0.05)))
+    top = np.argmax(seen, axis=0) + 0.5  # (W,) centre of the highest floor pixel: the farthest floor seen
+    wall_v = room_boundaries(floor, ceiling_z, [0.0, 0.0], camera_height, labels.shape[1]).floor_v
+    return int(np.count_nonzero(seen.any(axis=0) & (top < wall_v - rows)))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -83,7 +81,8 @@ def main(argv: list[str] | None = None) -> int:
                               camera_height=h, width=lab.shape[1])
             ious.append(sc.iou_3d)
             if path.name == "labels.png":
-                extra = (len(g.floor), len(gt["room"]["floor"]), floor_beyond(lab, mask, np.asarray(g.floor), h))
+                beyond = floor_beyond(lab, mask, np.asarray(g.floor), float(g.ceiling_z), h)
+                extra = (len(g.floor), len(gt["room"]["floor"]), beyond)
         rows.append((room.name, *ious, *extra))
     if not rows:
         raise SystemExit(f"{args.run}: no label_ids.png of the rooms of {args.data}")

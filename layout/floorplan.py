@@ -47,7 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from panogeom.coords import lonlat_to_ray, ray_to_lonlat
 
-from .polygon import points_in_polygon, polygon_problems
+from .polygon import points_in_polygon, polygon_problems, ray_hits
 
 __all__ = ["WallObservation", "FloorPlan", "close_manhattan_polygon", "rectangle_around", "polygon_lines"]
 
@@ -443,8 +443,9 @@ def _try_close(walls: Sequence[WallObservation], corner_tol: float, merge_tol: f
     poly, axis, support = _polygon_from_lines(lines)
     if _problems(poly, max_range):
         return None
-    lines = _extend_far_ends(lines, walls, merge_tol, min_wall, max_range)
-    return _polygon_from_lines(lines)
+    if not any(ln.through_far_end for ln in lines):
+        return poly, axis, support
+    return _polygon_from_lines(_extend_far_ends(lines, walls, merge_tol, min_wall, max_range))
 
 
 def _first_hits(poly: FloatArray, lons: FloatArray) -> tuple[NDArray[np.intp], FloatArray]:
@@ -454,19 +455,11 @@ def _first_hits(poly: FloatArray, lons: FloatArray) -> tuple[NDArray[np.intp], F
     axis (M,) and offset (M,) of the first wall hit (axis -1 where none is).
     """
     d = lonlat_to_ray(np.stack([lons, np.zeros_like(lons)], axis=-1))[:, :2]  # (M, 2)
-    a, b = poly, np.roll(poly, -1, axis=0)
-    ax = np.where(np.abs(a[:, 0] - b[:, 0]) <= np.abs(a[:, 1] - b[:, 1]), 0, 1)  # x = const edges are axis 0
-    c = a[np.arange(len(a)), ax]  # (N,) edge offsets
-    lo = np.minimum(a[np.arange(len(a)), 1 - ax], b[np.arange(len(a)), 1 - ax])
-    hi = np.maximum(a[np.arange(len(a)), 1 - ax], b[np.arange(len(a)), 1 - ax])
-    dn = d[:, ax]  # (M, N) ray component along each edge's normal
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = c[None, :] / dn
-    o = t * d[:, 1 - ax]
-    ok = (np.abs(dn) > 1e-12) & (t > 1e-9) & (o >= lo[None, :] - 1e-9) & (o <= hi[None, :] + 1e-9)
-    t = np.where(ok, t, np.inf)
-    k = np.argmin(t, axis=1)
-    hit = np.isfinite(t[np.arange(len(lons)), k])
+    dist, k = ray_hits(poly, d)
+    e = np.roll(poly, -1, axis=0) - poly
+    ax = np.where(np.abs(e[:, 0]) <= np.abs(e[:, 1]), 0, 1)  # x = const edges are axis 0
+    c = poly[np.arange(len(poly)), ax]  # (N,) edge offsets
+    hit = np.isfinite(dist)
     return np.where(hit, ax[k], -1), np.where(hit, c[k], np.nan)
 
 

@@ -33,7 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from panogeom.coords import lonlat_to_pixel, lonlat_to_ray, pixel_to_lonlat, ray_to_pixel
 
-from .polygon import as_polygon, points_in_polygon
+from .polygon import as_polygon, points_in_polygon, ray_hits
 
 __all__ = [
     "UNKNOWN",
@@ -218,23 +218,10 @@ def room_boundaries(floor: ArrayLike, ceiling_z: ArrayLike, camera_xy: ArrayLike
     lead = np.broadcast_shapes(poly.shape[:-2], ceil.shape, cam_h.shape, s.shape, cam.shape[:-1])
     lon, direction = column_directions(w)
 
-    # edges relative to the camera, (..., 1, N, 2)
+    # polygon relative to the camera, (..., N, 2); the first edge each column's ray meets
     a = poly * s[..., None, None] - cam[..., None, :]
-    e = np.roll(a, -1, axis=-2) - a
-    a, e = a[..., None, :, :], e[..., None, :, :]
-    dx, dy = direction[:, None, 0], direction[:, None, 1]  # (W, 1)
-    denom = dx * e[..., 1] - dy * e[..., 0]  # cross(dir, e): (..., W, N)
-    num_t = a[..., 0] * e[..., 1] - a[..., 1] * e[..., 0]  # cross(a, e): (..., 1, N)
-    num_s = a[..., 0] * dy - a[..., 1] * dx  # cross(a, dir): (..., W, N)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = num_t / denom
-        sp = num_s / denom
-    elen = np.sqrt(np.sum(e * e, axis=-1))
-    eps = 1e-12 * np.maximum(elen, 1.0)
-    hit = (np.abs(denom) > eps) & (t > 1e-9) & (sp >= -1e-12) & (sp <= 1.0 + 1e-12)
-    t = np.where(hit, t, np.inf)
-    idx = np.argmin(t, axis=-1)
-    dist = np.take_along_axis(t, idx[..., None], axis=-1)[..., 0]
+    dist, idx = ray_hits(a, direction)
+    e = (np.roll(a, -1, axis=-2) - a)[..., None, :, :]  # (..., 1, N, 2)
     dist = np.broadcast_to(dist, lead + (w,))
     idx = np.broadcast_to(idx, lead + (w,))
     seen = np.isfinite(dist)

@@ -27,6 +27,7 @@ __all__ = [
     "is_ccw",
     "as_ccw",
     "points_in_polygon",
+    "ray_hits",
     "distance_to_boundary",
     "wall_segments",
     "project_to_segments",
@@ -219,6 +220,51 @@ class SegmentProjection:
     distance: FloatArray
     closest: FloatArray
     t: FloatArray
+
+
+
+def ray_hits(polygon: ArrayLike, directions: ArrayLike) -> tuple[FloatArray, NDArray[np.intp]]:
+    """The first edge of a polygon that each ray from the origin meets, and how far away (batched).
+
+    Parameters
+    ----------
+    polygon : (..., N, 2) float
+        Vertices relative to the rays' origin (e.g. the camera), either
+        orientation, no repeated closing vertex.
+    directions : (W, 2) float
+        Unit directions of the rays.
+
+    Returns
+    -------
+    distance : (..., W) float
+        Distance along each ray to the first edge it meets (inf where none).
+    index : (..., W) int
+        That edge, ``i`` = from vertex ``i`` to ``i + 1``; meaningless where
+        ``distance`` is inf.
+
+    Examples
+    --------
+    >>> d, i = ray_hits([[-1, -1], [2, -1], [2, 1], [-1, 1]], [[1.0, 0.0], [0.0, 1.0]])
+    >>> d.tolist(), i.tolist()
+    ([2.0, 1.0], [1, 2])
+    """
+    a = np.asarray(polygon, dtype=np.float64)
+    direction = np.asarray(directions, dtype=np.float64).reshape(-1, 2)
+    e = np.roll(a, -1, axis=-2) - a
+    a, e = a[..., None, :, :], e[..., None, :, :]  # (..., 1, N, 2)
+    dx, dy = direction[:, None, 0], direction[:, None, 1]  # (W, 1)
+    denom = dx * e[..., 1] - dy * e[..., 0]  # cross(dir, e): (..., W, N)
+    num_t = a[..., 0] * e[..., 1] - a[..., 1] * e[..., 0]  # cross(a, e): (..., 1, N)
+    num_s = a[..., 0] * dy - a[..., 1] * dx  # cross(a, dir): (..., W, N)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = num_t / denom
+        sp = num_s / denom
+    elen = np.sqrt(np.sum(e * e, axis=-1))
+    eps = 1e-12 * np.maximum(elen, 1.0)
+    hit = (np.abs(denom) > eps) & (t > 1e-9) & (sp >= -1e-12) & (sp <= 1.0 + 1e-12)
+    t = np.where(hit, t, np.inf)
+    idx = np.argmin(t, axis=-1)
+    return np.take_along_axis(t, idx[..., None], axis=-1)[..., 0], idx
 
 
 def project_to_segments(points: ArrayLike, starts: ArrayLike, ends: ArrayLike) -> SegmentProjection:

@@ -31,11 +31,13 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from panogeom.raycast import LABEL_CEILING as CEILING
+from panogeom.raycast import LABEL_WALL_X as WALL_X
+from panogeom.raycast import LABEL_WALL_Y as WALL_Y
+
 from ._checks import rgb_pano
 
 __all__ = ["edge_strength", "ceiling_edge_path", "move_ceiling_boundary"]
-
-CEILING, WALL_X, WALL_Y = 2, 3, 4
 
 #: Search band, in rows of a 512-row label map (scaled with the height).
 BAND_ROWS_512 = 20
