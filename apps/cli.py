@@ -122,6 +122,9 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--orientation", choices=["net", "hog"], default="net",
                    help="orientation evidence: the HOG distance E_o plus the project's learned front/back prior, "
                         "or E_o alone (the paper)")
+    p.add_argument("--box-edges", choices=["silhouette", "detector"], default="silhouette",
+                   help="box edges the model choice and the sampler fit: the detector's, moved onto each object's "
+                        "grab-cut silhouette where it confirms them, or the detector's alone")
     p.add_argument("--seed", type=int, default=0, help="seed of the sampler")
     p.add_argument("--size", type=int, default=1024, help="working width in pixels (larger inputs are downscaled)")
     p.add_argument("--no-objects", action="store_true", help="layout only: no detection, pose or sampling of objects")

@@ -8,8 +8,8 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
 3. object detection on perspective tiles, boxes in the panorama, spherical
    NMS (:mod:`detect`), one class per object
    (:func:`detect.nms.suppress_across_classes`); grab-cut masks
-   (``detect.grabcut``) are not used: on synthetic rooms they made the pose
-   CRF worse than plain box crops
+   (``detect.grabcut``) are not used for the pose crops: on synthetic rooms
+   they made the pose CRF worse than plain box crops
 4. surface labels: orientation map + geometric context, objects masked
    (:mod:`layout.surfaces`)
 5. room geometry from the labels: Manhattan floor polygon and wall height,
@@ -19,6 +19,9 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
    -> yaw and model per object (:mod:`posecrf`); not in the paper, the E_o tables
    also pay the project's learned front/back prior on the crop-relative yaw
    (:mod:`posecrf.orientnet`, ``RunOptions.orientation``)
+   Not in the paper, after the poses (stage ``edges``, ``RunOptions.box_edges``):
+   each tile box edge that the object's grab-cut silhouette confirms moves
+   onto it (:func:`detect.grabcut.silhouette_box`), for the box fits below
 7. model choice by box fit (not in the paper, ``RunOptions.model_choice``):
    each object's model among its class's and its wall-aligned yaw, with the
    camera height they share, from how well they fit the detection boxes
@@ -55,6 +58,8 @@ CANDIDATE_SCORE = 0.05
 CROP_MODES = ("tile", "box")
 #: ``RunOptions.orientation``: E_o plus the learned front/back prior (:mod:`posecrf.orientnet`), or E_o alone.
 ORIENTATION_MODES = ("net", "hog")
+#: ``RunOptions.box_edges``: where the box fits read a tile detection's edges.
+BOX_EDGE_MODES = ("silhouette", "detector")
 #: Weight of the orientation network's cost ``-log(n_bins p)`` added to E_o (``RunOptions.orientation="net"``);
 #: chosen on the tuning seeds 7000 and 8000 among 0.1 and 0.3 (docs/EVALUATION.md, session 10). Over the yaws of
 #: one crop the cost spans about 9, E_o (HOG distance) about 0.3 (``benchmarks/eval_orientnet.py vs-hog``).
@@ -92,6 +97,10 @@ class RunOptions:
         ``"net"`` (default): E_o of every pose plus ``ORIENTATION_WEIGHT`` times the cost of the project's
         orientation network (:mod:`posecrf.orientnet`, a learned p(yaw | crop) that tells fronts from backs);
         ``"hog"``: E_o alone (the paper).
+    box_edges : str
+        ``"silhouette"`` (default): each box edge of a tile detection that its grab-cut silhouette confirms
+        (within 3 degrees) moves onto the silhouette (:func:`detect.grabcut.silhouette_box`) before the
+        model choice and the sampler fit the boxes; ``"detector"``: the detector's edges alone.
     """
 
     camera_height: float | None = None
@@ -103,8 +112,11 @@ class RunOptions:
     model_choice: str = "box"
     crop: str = "tile"
     orientation: str = "net"
+    box_edges: str = "silhouette"
 
     def __post_init__(self) -> None:
+        if self.box_edges not in BOX_EDGE_MODES:
+            raise ValueError(f"box_edges: expected one of {BOX_EDGE_MODES}, got {self.box_edges!r}")
         if self.crop not in CROP_MODES:  # checked here: a bad mode inside the pose stage would read as "no pose"
             raise ValueError(f"crop: expected one of {CROP_MODES}, got {self.crop!r}")
         if self.orientation not in ORIENTATION_MODES:
@@ -387,19 +399,28 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
         with prog.stage("pose", "object poses (HOG + pose CRF)"):
             poses = _poses(upright, dets, prog, options.crop, options.orientation)
 
+    silhouettes: list = [None] * len(dets)
+    if options.box_edges == "silhouette" and any(d.tile is not None for d in dets):
+        from detect.grabcut import silhouette_box
+
+        with prog.stage("edges", "box edges onto the grab-cut silhouettes"):
+            silhouettes = [silhouette_box(upright, d) for d in dets]
+            moved = sum(int(s.snapped.any(axis=0).sum()) for s in silhouettes if s is not None)
+            prog.say(f"  {moved} of {4 * len(dets)} box edges moved onto a silhouette")
+
     lib = builtin_library()
     objects, eo, alternatives = [], [], []
     # box edges cut by a nearer object in front are left out of the box fits
     cut = occluded_edges(np.array([d.box for d in dets]), W) if dets else np.zeros((0, 4), bool)
-    for d, p, c in zip(dets, poses, cut):
+    for d, p, c, sil in zip(dets, poses, cut, silhouettes):
         if p is None:
             continue
         model, yaw, e_o, est, ray = p
 
         # a tile detection's edges are great circles (planes through the camera); one at the tile border is not
         # the object's own edge; an object other tiles also see whole brings their edges too (each edge's fit
-        # takes the median over the views)
-        planes = None if d.tile is None else \
+        # takes the median over the views); edges the grab-cut silhouette confirms are the silhouette's
+        planes = None if d.tile is None else sil.edge_planes() if sil is not None else \
             np.stack([t.edge_planes() for t in d.views]) if d.views else d.tile.edge_planes()
         if d.tile is not None:
             c = c | d.tile.border_edges()

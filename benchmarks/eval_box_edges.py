@@ -14,7 +14,12 @@ panorama-box IoU > 0.5 with its gt box), the four box edges are compared with th
   border are left out;
 * the same, each edge the median over the tiles that see the object whole (``Detection.views``, what the
   pipeline's box fits use; objects seen whole by one tile only keep that tile's edges);
+* each edge moved onto the object's grab-cut silhouette where it confirms the detector's edge within 3 degrees
+  (:func:`detect.grabcut.silhouette_box`, what the pipeline's box fits use by default since session 18), the
+  median over the views as above;
 * as the panorama box (lon/lat extent, ``Detection.box``): predicted minus detected edge angle.
+
+Also printed per mode: the share of edges within 0.5 degree of the outline and the share more than 2 degrees off.
 
 Printed per class and overall: median and median absolute deviation (MAD) per edge (left, top, right, bottom),
 degrees. This is where the edge scale of :mod:`layout.modelfit` and the choice of great-circle edges come from.
@@ -41,6 +46,7 @@ def measure(data: Path, rooms: int, min_visible: int = 2000) -> dict[str, dict[s
     """Per mode ('planes', 'pano box') and class: list of (4,) residuals in degrees (NaN: edge left out)."""
     from detect.backends import get_detector
     from detect.nms import pano_box_iou
+    from detect.grabcut import silhouette_box
     from detect.tiles import detect_panorama
     from layout.sampler import DetectedObject, _BoxEdges, hull_outline
     from posecrf.library import builtin_library
@@ -50,7 +56,7 @@ def measure(data: Path, rooms: int, min_visible: int = 2000) -> dict[str, dict[s
     det = get_detector("builtin")
     views = det.views()
     out: dict[str, dict[str, list]] = {m: defaultdict(list) for m in ("planes", "planes, median of views",
-                                                                         "pano box")}
+                                                                         "silhouette, median of views", "pano box")}
     for room in sorted(p for p in data.iterdir() if (p / "gt.json").is_file())[:rooms]:
         gt = json.loads((room / "gt.json").read_text())
         img = np.array(Image.open(room / gt["image"].get("file", "pano.png")).convert("RGB"))
@@ -72,7 +78,9 @@ def measure(data: Path, rooms: int, min_visible: int = 2000) -> dict[str, dict[s
             yaw = np.radians(o["yaw_deg"])
             xy = np.array(o["center"], float)[None, None, :2]
             sets = np.stack([t.edge_planes() for t in d.views]) if d.views else d.tile.edge_planes()
+            sil = silhouette_box(img, d)
             for mode, planes in (("planes", d.tile.edge_planes()), ("planes, median of views", sets),
+                                 ("silhouette, median of views", sets if sil is None else sil.edge_planes()),
                                  ("pano box", None)):
                 obj = DetectedObject(o["class"], d.box, o["size"], yaw, outline=outlines[o["model"]],
                                      edge_planes=planes)
@@ -96,14 +104,19 @@ def main(argv: list[str] | None = None) -> int:
              "section is written by the script; see its docstring). Builtin detector, objects with at least 2000 "
              "visible pixels found by it; residuals at the true model, pose and camera height, degrees (left, top, "
              "right, bottom).", "",
-             "| edges as | class | objects | median | MAD |", "|---|---|---:|---|---|"]
+             "| edges as | class | objects | median | MAD | within 0.5 deg | over 2 deg |",
+             "|---|---|---:|---|---|---|---|"]
     for mode, per in res.items():
         for cls in ["all"] + sorted(c for c in per if c != "all"):
             v = np.array(per[cls], float)
             med = np.nanmedian(v, axis=0)
             mad = np.nanmedian(np.abs(v - med), axis=0)
+            a, known = np.abs(v), np.isfinite(v)
+            near = np.sum((a < 0.5) & known, axis=0) / np.maximum(known.sum(axis=0), 1)
+            far = np.sum((a > 2.0) & known, axis=0) / np.maximum(known.sum(axis=0), 1)
             lines.append(f"| {mode} | {cls} | {len(v)} | {' / '.join(f'{x:+.2f}' for x in med)} | "
-                         f"{' / '.join(f'{x:.2f}' for x in mad)} |")
+                         f"{' / '.join(f'{x:.2f}' for x in mad)} | {' / '.join(f'{x:.2f}' for x in near)} | "
+                         f"{' / '.join(f'{x:.2f}' for x in far)} |")
     publish(lines, args.update_docs, EVALUATION_MD, SECTION)
     return 0
 

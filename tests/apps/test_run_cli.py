@@ -152,6 +152,36 @@ def test_detection_keeps_the_ranked_candidates_for_average_precision(room_png):
     assert [d for d in cands if d.score >= thr] == used
 
 
+def test_box_edges_move_onto_the_silhouettes_unless_told_not_to(tmp_path, room_png, monkeypatch):
+    """`--box-edges silhouette` (default) refines the tile detections' edges by grab-cut before the box fits (its
+    own stage); `--box-edges detector` fits the detector's edges as they are; a bad mode is refused."""
+    pytest.importorskip("torch")
+    import detect.grabcut
+    from apps.pipeline import RunOptions
+
+    calls = []
+    real = detect.grabcut.silhouette_box
+
+    def spy(*args, **kwargs):
+        calls.append(real(*args, **kwargs))
+        return calls[-1]
+
+    monkeypatch.setattr(detect.grabcut, "silhouette_box", spy)
+    timings = {}
+    for mode in ("silhouette", "detector"):
+        out = tmp_path / mode
+        assert main(["run", str(room_png / "pano.png"), "--out", str(out), "--size", "512", "--samples", "20",
+                     "--quiet", "--box-edges", mode]) == 0
+        timings[mode] = json.loads((out / "scene.json").read_text())["timing_s"]
+        if mode == "silhouette":
+            assert calls and any(c is not None and c.snapped.any() for c in calls)
+            n = len(calls)
+    assert "edges" in timings["silhouette"] and "edges" not in timings["detector"]
+    assert len(calls) == n  # the detector mode made no grab-cut call
+    with pytest.raises(ValueError, match="box_edges: expected one of"):
+        RunOptions(box_edges="grabcut")
+
+
 def test_a_box_around_the_whole_panorama_gets_no_pose_but_the_run_finishes(tmp_path, room_png):
     """A detection 360 degrees wide (a bed under the camera, seen all around) has no perspective crop: the run
     goes on without a pose for it instead of failing (seen on ../shared/data/real/lgtnet_demo)."""

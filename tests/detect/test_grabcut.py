@@ -89,3 +89,57 @@ def test_detect_panorama_can_return_masks():
 
     (d,) = detect_panorama(pano, Red(), tile_size=96, masks=True)
     assert _iou(d.mask, obj) > 0.85
+
+
+def _object_in_view(view: PinholeView, rect, colour) -> tuple[np.ndarray, np.ndarray]:
+    """A panorama whose object is the set of rays inside ``rect`` (pixels of ``view``): its tile box is exact."""
+    from panogeom.coords import pixel_to_ray
+
+    pano = _textured(5)
+    uv, front = view.ray_to_pixel(pixel_to_ray(pixel_grid(W, H), W, H))
+    obj = front & (uv[..., 0] >= rect[0]) & (uv[..., 0] <= rect[2]) & (uv[..., 1] >= rect[1]) & (uv[..., 1] <= rect[3])
+    pano[obj] = colour
+    return pano, obj
+
+
+def _edge_angles_deg(a, b) -> np.ndarray:
+    """Angle between corresponding edge planes of two TileBoxes, degrees: (4,)."""
+    na, nb = a.edge_planes(), b.edge_planes()
+    return np.rad2deg(np.arccos(np.clip((na * nb).sum(axis=1), -1.0, 1.0)))
+
+
+def test_silhouette_box_moves_loose_edges_onto_the_outline():
+    from detect.detection import TileBox
+    from detect.grabcut import silhouette_box
+
+    view = PinholeView(np.deg2rad(30), np.deg2rad(-20), 0.0, np.pi / 2, 200, 200)
+    rect = [80.0, 90.0, 130.0, 150.0]
+    pano, _ = _object_in_view(view, rect, (210, 70, 40))
+    true = TileBox(view, rect)
+    # the detector's box: left and right 2 px loose, top and bottom 2 px tight (1 px ~ 0.57 deg)
+    det = to_panorama(ImageDetection("chair", 0.9, [78.0, 92.0, 132.0, 148.0]), view, W, H)
+    assert np.all(_edge_angles_deg(det.tile, true) > 0.9)
+    sb = silhouette_box(pano, det)
+    assert sb is not None and sb.snapped.tolist() == [[True, True, True, True]]
+    assert len(sb.views) == 1 and sb.views[0].view == view
+    assert np.all(_edge_angles_deg(sb.views[0], true) < 0.5)  # a pixel of the crop: 0.35 deg
+    assert sb.edge_planes().shape == (4, 3)
+
+
+def test_silhouette_box_keeps_the_detector_edges_it_cannot_confirm():
+    from detect.detection import Detection as D
+    from detect.grabcut import silhouette_box
+
+    view = PinholeView(np.deg2rad(-60), np.deg2rad(-15), 0.0, np.pi / 2, 200, 200)
+    rect = [70.0, 80.0, 120.0, 140.0]
+    pano, _ = _object_in_view(view, rect, (40, 200, 90))
+    # right edge 14 px (about 6 deg) outside the object: the silhouette's right edge is beyond the 2 deg gate;
+    # bottom edge 14 px inside: grab-cut stops at the grown region, which is no outline either
+    det = to_panorama(ImageDetection("chair", 0.9, [70.0, 80.0, 134.0, 126.0]), view, W, H)
+    sb = silhouette_box(pano, det)
+    assert sb is not None and sb.snapped.tolist() == [[True, True, False, False]]
+    assert sb.views[0].box[2:].tolist() == [134.0, 126.0]
+    # boxes read from a file have no tile: nothing to refine
+    assert silhouette_box(pano, D("chair", 0.9, [600.0, 300.0, 650.0, 360.0], W, H)) is None
+    with pytest.raises(ValueError, match="gate_deg: expected degrees > 0"):
+        silhouette_box(pano, det, gate_deg=0.0)
