@@ -304,13 +304,13 @@ def silhouette_box(pano: ArrayLike, det: Detection, *, grow: float = 0.1, gate_d
     0.28-0.64 deg and the share of edges within 0.5 deg of the true outline
     rises from 0.30-0.38 to 0.44-0.66 (``benchmarks/eval_box_edges.py`` on
     the 30 rooms of seed 7000; docs/EVALUATION.md, "Detector box edges").
-    Beds gain least: their right edge is as far off as before.
+    Beds gain least (on seed 7000 their right edge stays as far off).
 
     ``grow`` and ``gate_deg`` were chosen on the synthetic tuning seeds 7000
-    and 8000 (docs/EVALUATION.md, "Session 18"): a grown region of 0.1
-    (0 and 0.2 fitted the true outlines worse) and a gate of 3 degrees (1 and
-    2 degrees left the camera height of the model choice further off, 5
-    degrees was no better on both sets).
+    and 8000 (docs/EVALUATION.md, "Session 18"; partly with session
+    scripts): a grown region of 0.1 (0 and 0.2 fitted the true outlines
+    worse) and a gate of 3 degrees (1 and 2 degrees left the camera height
+    of the model choice further off, 5 degrees was not better on both sets).
 
     Parameters
     ----------
