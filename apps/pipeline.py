@@ -400,11 +400,13 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
             poses = _poses(upright, dets, prog, options.crop, options.orientation)
 
     silhouettes: list = [None] * len(dets)
-    if options.box_edges == "silhouette" and any(d.tile is not None for d in dets):
+    refine = [d.tile is not None and p is not None for d, p in zip(dets, poses)]
+    if options.box_edges == "silhouette" and any(refine):
         from detect.grabcut import silhouette_box
 
         with prog.stage("edges", "box edges onto the grab-cut silhouettes"):
-            silhouettes = [silhouette_box(upright, d) for d in dets]
+            # only the objects the box fits will see (those with a pose)
+            silhouettes = [silhouette_box(upright, d) if r else None for d, r in zip(dets, refine)]
             moved = sum(int(s.snapped.any(axis=0).sum()) for s in silhouettes if s is not None)
             prog.say(f"  {moved} of {4 * len(dets)} box edges moved onto a silhouette")
 
@@ -420,8 +422,7 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
         # a tile detection's edges are great circles (planes through the camera); one at the tile border is not
         # the object's own edge; an object other tiles also see whole brings their edges too (each edge's fit
         # takes the median over the views); edges the grab-cut silhouette confirms are the silhouette's
-        planes = None if d.tile is None else sil.edge_planes() if sil is not None else \
-            np.stack([t.edge_planes() for t in d.views]) if d.views else d.tile.edge_planes()
+        planes = (sil if sil is not None else d).edge_planes()
         if d.tile is not None:
             c = c | d.tile.border_edges()
 

@@ -77,7 +77,7 @@ def measure(data: Path, rooms: int, min_visible: int = 2000) -> dict[str, dict[s
                 outlines[o["model"]] = hull_outline(lib[o["model"]].vertices)
             yaw = np.radians(o["yaw_deg"])
             xy = np.array(o["center"], float)[None, None, :2]
-            sets = np.stack([t.edge_planes() for t in d.views]) if d.views else d.tile.edge_planes()
+            sets = d.edge_planes()
             sil = silhouette_box(img, d)
             for mode, planes in (("planes", d.tile.edge_planes()), ("planes, median of views", sets),
                                  ("silhouette, median of views", sets if sil is None else sil.edge_planes()),

@@ -51,6 +51,7 @@ __all__ = [
     "PanoramaDetector",
     "check_label",
     "check_rgb_image",
+    "tile_edge_planes",
 ]
 
 Array = NDArray[np.float64]
@@ -294,6 +295,13 @@ class Detection:
             raise ValueError("views: expected a tuple of TileBox")
         object.__setattr__(self, "views", views)
 
+    def edge_planes(self) -> NDArray[np.float64] | None:
+        """The box edges as planes through the camera, for box fits: :func:`tile_edge_planes` of ``views``
+        (or of ``tile`` alone); None without a tile (the region is the lon/lat rectangle ``box``)."""
+        if self.tile is None:
+            return None
+        return tile_edge_planes(self.views or (self.tile,))
+
     @property
     def wraps(self) -> bool:
         """True when the box crosses the left/right seam."""
@@ -354,3 +362,23 @@ class PanoramaDetector(Protocol):
     def detect_panorama(self, pano: np.ndarray) -> list[Detection]:
         """Detections in panorama pixels of ``pano``."""
         ...
+
+
+def tile_edge_planes(boxes: Sequence[TileBox]) -> NDArray[np.float64]:
+    """Edge planes of one object's tile boxes (:meth:`TileBox.edge_planes`): ``(4, 3)`` for one box, else
+    ``(V, 4, 3)``, one set per view (the box fits of :mod:`layout` take each edge's median over the views).
+
+    Examples
+    --------
+    >>> from panogeom.perspective import PinholeView
+    >>> view = PinholeView(yaw=0.0, pitch=0.0, roll=0.0, fov=np.pi / 2, width=100, height=100)
+    >>> t = TileBox(view, [25, 25, 75, 75])
+    >>> tile_edge_planes([t]).shape, tile_edge_planes([t, t]).shape
+    ((4, 3), (2, 4, 3))
+    """
+    boxes = list(boxes)
+    if not boxes:
+        raise ValueError("boxes: expected at least one TileBox")
+    if len(boxes) == 1:
+        return boxes[0].edge_planes()
+    return np.stack([t.edge_planes() for t in boxes])

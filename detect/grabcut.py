@@ -37,8 +37,9 @@ from numpy.typing import ArrayLike, NDArray
 from panogeom.coords import pixel_to_ray, ray_to_lonlat
 from panogeom.perspective import PinholeView, equirect_to_perspective
 
-from .detection import Detection, TileBox, check_rgb_image
+from .detection import Detection, TileBox, check_rgb_image, tile_edge_planes
 from .nms import region_boundary, region_contains
+from .tiles import rays_box_in_view
 
 __all__ = ["ObjectCrop", "object_view", "grabcut_crop", "crop_mask_to_pano", "segment_detections", "SilhouetteBox",
            "silhouette_box"]
@@ -257,20 +258,18 @@ class SilhouetteBox:
     snapped: NDArray[np.bool_]
 
     def edge_planes(self) -> NDArray[np.float64]:
-        """The edges as planes through the camera: (4, 3) for one view, else (V, 4, 3) (see
-        :meth:`TileBox.edge_planes`; the box fits of :mod:`layout` take each edge's median over the views)."""
-        if len(self.views) == 1:
-            return self.views[0].edge_planes()
-        return np.stack([t.edge_planes() for t in self.views])
+        """The edges as planes through the camera, as :meth:`Detection.edge_planes`: (4, 3) for one view,
+        else (V, 4, 3) (:func:`~detect.detection.tile_edge_planes`)."""
+        return tile_edge_planes(self.views)
 
 
 def _mask_corner_rays(crop: ObjectCrop) -> NDArray[np.float64]:
     """Rays through the four corners of every boundary pixel of a crop's foreground: (K, 3)."""
-    m = crop.mask
-    inner = m.copy()
-    inner[1:-1, 1:-1] &= m[:-2, 1:-1] & m[2:, 1:-1] & m[1:-1, :-2] & m[1:-1, 2:]
-    inner[0, :] = inner[-1, :] = inner[:, 0] = inner[:, -1] = False
-    ys, xs = np.nonzero(m & ~inner)
+    cv2 = _cv2()
+    m = crop.mask.astype(np.uint8)
+    cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+    inner = cv2.erode(m, cross, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    ys, xs = np.nonzero(m > inner)
     corners = np.stack([np.stack([xs + dx, ys + dy], -1) for dx in (0.0, 1.0) for dy in (0.0, 1.0)])
     return crop.view.pixel_to_ray(corners.reshape(-1, 2).astype(np.float64))
 
@@ -347,21 +346,14 @@ def silhouette_box(pano: ArrayLike, det: Detection, *, grow: float = 0.1, gate_d
     if int(crop.mask.sum()) < 16:
         return None
     rays = _mask_corner_rays(crop)
-
-    def tight_box(view: PinholeView) -> NDArray[np.float64] | None:
-        uv, front = view.ray_to_pixel(rays)
-        if not np.all(front):
-            return None
-        return np.array([uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()])
-
-    own = tight_box(det.tile.view)
+    own = rays_box_in_view(rays, det.tile.view)
     if own is None:
         return None
     # a silhouette edge on the grown region's own border is where grab-cut was stopped, not the outline
     reach = np.abs(own - grown.box) <= max(1.0, det.tile.view.focal / crop.view.focal)
     views, snapped = [], []
     for t in det.views or (det.tile,):
-        sil = own if t.view == det.tile.view else tight_box(t.view)
+        sil = own if t.view == det.tile.view else rays_box_in_view(rays, t.view)
         if sil is None:
             return None
         ok = (np.abs(sil - t.box) <= t.view.focal * np.deg2rad(float(gate_deg))) & ~reach

@@ -54,6 +54,7 @@ __all__ = [
     "detect_panorama",
     "tile_consensus",
     "box_in_view",
+    "rays_box_in_view",
 ]
 
 Array = NDArray[np.float64]
@@ -375,7 +376,7 @@ def tile_consensus(groups: Sequence[tuple[Detection, Sequence[Detection]]], view
         if weight > 0.0:
             rays = region_boundary(det, 16)
             for v in vs:
-                b = _rays_box_in_view(rays, v)
+                b = rays_box_in_view(rays, v)
                 e = float(margin) * v.width
                 if b is not None and b[0] >= e and b[1] >= e and b[2] <= v.width - e and b[3] <= v.height - e:
                     seen.append(best_of.get(v, 0.0))
@@ -412,15 +413,23 @@ def box_in_view(det: Detection, view: PinholeView, samples: int = 64) -> Array:
     >>> np.round(box_in_view(d, view), 6).tolist()
     [25.0, 25.0, 75.0, 75.0]
     """
-    box = _rays_box_in_view(region_boundary(det, samples), view)
+    box = rays_box_in_view(region_boundary(det, samples), view)
     if box is None:
         raise ValueError(f"det: expected a region in front of the view (yaw={view.yaw:.3f}, "
                          f"pitch={view.pitch:.3f}), got one that reaches behind it")
     return box
 
 
-def _rays_box_in_view(rays: Array, view: PinholeView) -> Array | None:
-    """Pixel bounding box ``(u0, v0, u1, v1)`` of boundary rays in a view; None if any lies behind it."""
+def rays_box_in_view(rays: ArrayLike, view: PinholeView) -> Array | None:
+    """Pixel bounding box ``(u0, v0, u1, v1)`` of rays ``(K, 3)`` seen in a view; None if any lies behind it.
+
+    Examples
+    --------
+    >>> view = PinholeView(yaw=0.0, pitch=0.0, roll=0.0, fov=np.pi / 2, width=100, height=100)
+    >>> rays = view.pixel_to_ray(np.array([[10.0, 20.0], [60.0, 70.0]]))
+    >>> np.round(rays_box_in_view(rays, view), 6).tolist()
+    [10.0, 20.0, 60.0, 70.0]
+    """
     uv, front = view.ray_to_pixel(rays)
     if not np.all(front):
         return None

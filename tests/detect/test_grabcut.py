@@ -133,7 +133,7 @@ def test_silhouette_box_keeps_the_detector_edges_it_cannot_confirm():
     view = PinholeView(np.deg2rad(-60), np.deg2rad(-15), 0.0, np.pi / 2, 200, 200)
     rect = [70.0, 80.0, 120.0, 140.0]
     pano, _ = _object_in_view(view, rect, (40, 200, 90))
-    # right edge 14 px (about 6 deg) outside the object: the silhouette's right edge is beyond the 2 deg gate;
+    # right edge 14 px (about 8 deg) outside the object: the silhouette's right edge is beyond the 3 deg gate;
     # bottom edge 14 px inside: grab-cut stops at the grown region, which is no outline either
     det = to_panorama(ImageDetection("chair", 0.9, [70.0, 80.0, 134.0, 126.0]), view, W, H)
     sb = silhouette_box(pano, det)
