@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from panogeom.coords import pixel_to_ray, ray_to_pixel
@@ -171,6 +171,7 @@ def test_merge_collinear_joins_overlaps_and_keeps_distinct_lines():
 
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 10_000))
+@example(seed=1773)
 def test_merge_collinear_covers_its_input_and_is_idempotent(seed):
     rng = np.random.default_rng(seed)
     normals = unit(rng.normal(size=(4, 3)))
@@ -184,11 +185,14 @@ def test_merge_collinear_covers_its_input_and_is_idempotent(seed):
     s = LineSegments.from_endpoints(a, b)
     m = merge_collinear(s)
     assert len(m) <= len(s)
-    # every input endpoint lies on (within the tolerance of) some merged arc's circle and span
+    # every input endpoint lies on (within the tolerance of) some merged arc's circle and span; a point off the
+    # circle by delta next to an arc's end is up to about delta longer a way round its ends (two random circles
+    # may lie within the merge angle of each other: seed 1773 has two 0.28 deg apart, merged into one arc)
     for p in np.concatenate([s.a, s.b]):
-        near = np.abs(m.normals @ p) < np.sin(np.deg2rad(0.6))
+        off = np.abs(m.normals @ p)
+        near = off < np.sin(np.deg2rad(0.6))
         span = np.arccos(np.clip(np.sum(m.a * p, 1), -1, 1)) + np.arccos(np.clip(np.sum(m.b * p, 1), -1, 1))
-        assert np.any(near & (span <= m.lengths + 1e-3))
+        assert np.any(near & (span <= m.lengths + np.arcsin(np.clip(off, 0, 1)) + 1e-3))
     again = merge_collinear(m)
     assert len(again) == len(m)
 
