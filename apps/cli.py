@@ -125,6 +125,9 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--box-edges", choices=["silhouette", "detector"], default="silhouette",
                    help="box edges the model choice and the sampler fit: the detector's, moved onto each object's "
                         "grab-cut silhouette where it confirms them, or the detector's alone")
+    p.add_argument("--ceiling", choices=["network", "labels"], default="network",
+                   help="ceiling-wall boundary the room step reads: the boundary network's (unless it is far from "
+                        "the labels' in most columns), or the surface labels'")
     p.add_argument("--seed", type=int, default=0, help="seed of the sampler")
     p.add_argument("--size", type=int, default=1024, help="working width in pixels (larger inputs are downscaled)")
     p.add_argument("--no-objects", action="store_true", help="layout only: no detection, pose or sampling of objects")

@@ -11,7 +11,9 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
    (``detect.grabcut``) are not used for the pose crops: on synthetic rooms
    they made the pose CRF worse than plain box crops
 4. surface labels: orientation map + geometric context, objects masked
-   (:mod:`layout.surfaces`)
+   (:mod:`layout.surfaces`); not in the paper, the ceiling-wall boundary
+   moved onto the one the boundary network regresses per column
+   (:mod:`layout.surfaces.boundary_net`, ``RunOptions.ceiling``)
 5. room geometry from the labels: Manhattan floor polygon and wall height,
    metric under an assumed camera height (:mod:`layout.roomgeom`)
 6. object crops (the region each detection's tile box bounds, :func:`object_crop`)
@@ -60,6 +62,8 @@ CROP_MODES = ("tile", "box")
 ORIENTATION_MODES = ("net", "hog")
 #: ``RunOptions.box_edges``: where the box fits read a tile detection's edges.
 BOX_EDGE_MODES = ("silhouette", "detector")
+#: ``RunOptions.ceiling``: where the room step reads the ceiling-wall boundary.
+CEILING_MODES = ("labels", "network")
 #: Weight of the orientation network's cost ``-log(n_bins p)`` added to E_o (``RunOptions.orientation="net"``);
 #: chosen on the tuning seeds 7000 and 8000 among 0.1 and 0.3 (docs/EVALUATION.md, session 10). Over the yaws of
 #: one crop the cost spans about 9, E_o (HOG distance) about 0.3 (``benchmarks/eval_orientnet.py vs-hog``).
@@ -101,6 +105,11 @@ class RunOptions:
         ``"silhouette"`` (default): each box edge of a tile detection that its grab-cut silhouette confirms
         (within 3 degrees) moves onto the silhouette (:func:`detect.grabcut.silhouette_box`) before the
         model choice and the sampler fit the boxes; ``"detector"``: the detector's edges alone.
+    ceiling : str
+        ``"network"`` (default): the labels' ceiling-wall boundary moved onto the boundary network's
+        (:mod:`layout.surfaces.boundary_net`, ``estimate_surfaces(ceiling_net=True)``), unless the two are
+        far apart in most columns (a panorama unlike the network's training rooms: a note says so and the
+        labels' boundary is kept); ``"labels"``: the ceiling-wall boundary of the fused surface labels.
     """
 
     camera_height: float | None = None
@@ -113,8 +122,11 @@ class RunOptions:
     crop: str = "tile"
     orientation: str = "net"
     box_edges: str = "silhouette"
+    ceiling: str = "network"
 
     def __post_init__(self) -> None:
+        if self.ceiling not in CEILING_MODES:
+            raise ValueError(f"ceiling: expected one of {CEILING_MODES}, got {self.ceiling!r}")
         if self.box_edges not in BOX_EDGE_MODES:
             raise ValueError(f"box_edges: expected one of {BOX_EDGE_MODES}, got {self.box_edges!r}")
         if self.crop not in CROP_MODES:  # checked here: a bad mode inside the pose stage would read as "no pose"
@@ -360,11 +372,12 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
         with prog.stage("detect", f"object detection ({options.detector})"):
             dets, candidates = _detect(image, upright, rect, options.detector, prog)
     obj_mask = _object_mask(dets, (H, W))
+    ceiling_net = options.ceiling == "network"
 
     with prog.stage("surfaces", "surface labels (orientation map + geometric context)"):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            surf = estimate_surfaces(upright, object_mask=obj_mask)
+            surf = estimate_surfaces(upright, object_mask=obj_mask, ceiling_net=ceiling_net)
         notes.extend(str(w.message) for w in caught)
         notes.extend(surf.warnings)
 
@@ -386,7 +399,7 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
             except RoomGeometryError:
                 # The labels themselves were computed with the boxes masked: label the panorama again without
                 # them (what --no-objects does) and keep those labels for the room and the sampler.
-                surf = estimate_surfaces(upright)
+                surf = estimate_surfaces(upright, ceiling_net=ceiling_net)
                 try:
                     geom = estimate_room_geometry(surf.labels, h0)
                 except RoomGeometryError as exc2:

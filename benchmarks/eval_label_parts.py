@@ -58,7 +58,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--snap-ceiling", action="store_true",
                     help="label with estimate_surfaces(snap_ceiling=True): the ceiling-wall boundary snapped to "
                          "the image's edges (layout.surfaces.boundary; off by default)")
+    ap.add_argument("--ceiling-net", default=None, metavar="PT",
+                    help="label with estimate_surfaces(ceiling_net=...): the ceiling-wall boundary of these boundary "
+                         "network weights (layout.surfaces.boundary_net; 'default' for the committed ones)")
     args = ap.parse_args(argv)
+    net = None
+    if args.ceiling_net:
+        from layout.surfaces.boundary_net import load_boundary_net
+
+        net = load_boundary_net(None if args.ceiling_net == "default" else args.ceiling_net)
     rooms = sorted(p for p in args.data.iterdir() if (p / "gt.json").is_file())
     if not rooms:
         raise SystemExit(f"{args.data}: no room folders with gt.json")
@@ -71,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
         s = img.shape[1] / float(gt["image"]["width"])
         boxes = np.array([o["bbox_pano"] for o in gt["objects"] if o.get("bbox_pano")], float).reshape(-1, 4) * s
         mask = boxes_mask(boxes, img.shape[1]) if len(boxes) else None
-        est = estimate_surfaces(img, object_mask=mask, snap_ceiling=args.snap_ceiling).labels
+        est = estimate_surfaces(img, object_mask=mask, snap_ceiling=args.snap_ceiling, ceiling_net=net).labels
         true = np.array(Image.open(room / "labels.png"))
         if true.shape != est.shape:
             true = np.array(Image.fromarray(true).resize(est.shape[::-1], Image.NEAREST))
@@ -106,7 +114,8 @@ def main(argv: list[str] | None = None) -> int:
             off.append(float(np.mean(np.abs(ve[seen] - vt[seen]) > 3.0)) if seen.any() else float("nan"))
         per_room.append((room.name, off[0], off[1], est_iou, est_height_err))
     print(f"{len(rooms)} rooms of {args.data}, true camera height, gt boxes masked: room step on hybrid labels"
-          + (" (ceiling boundary snapped to edges)" if args.snap_ceiling else ""))
+          + (" (ceiling boundary snapped to edges)" if args.snap_ceiling else "")
+          + (f" (ceiling boundary of the boundary network {args.ceiling_net})" if net is not None else ""))
     print("| labels | mean 3D IoU | median | rooms under 0.6 |\n|---|---:|---:|---:|")
     for name, v in scores.items():
         a = np.array(v)

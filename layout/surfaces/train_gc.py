@@ -257,6 +257,22 @@ def evaluate_gc(model: GeometricContext, data: SynthSet) -> dict:
             "pixels": int(total.sum())}
 
 
+def environment_record() -> dict:
+    """When and with what a set of weights was made: date, torch / numpy / Python versions, torch threads."""
+    import torch
+
+    return {"date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"), "torch": torch.__version__,
+            "numpy": np.__version__, "python": platform.python_version(), "threads": torch.get_num_threads()}
+
+
+def write_record(path: str | Path, record: dict) -> None:
+    """Write a weights record as JSON, atomically (a temporary file renamed over ``path``)."""
+    js = Path(path)
+    tmp = js.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(record, indent=1) + "\n")
+    os.replace(tmp, js)
+
+
 def _fp16_state(net) -> dict:
     return {k: (v.detach().half() if v.is_floating_point() else v.detach().clone())
             for k, v in net.state_dict().items()}
@@ -393,16 +409,9 @@ def train_gc(train: SynthSet, val: SynthSet, out_dir: str | Path, *, epochs: int
         "val_class_accuracy": final["class_accuracy"],
         "history": history,
         "train_minutes": round((time.time() - t0) / 60.0, 2),
-        "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "torch": torch.__version__,
-        "numpy": np.__version__,
-        "python": platform.python_version(),
-        "threads": torch.get_num_threads(),
+        **environment_record(),
     }
-    js = out / "gc_net.json"
-    tmp = js.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(record, indent=1) + "\n")
-    os.replace(tmp, js)
+    write_record(out / "gc_net.json", record)
     _load.cache_clear()
     return record
 

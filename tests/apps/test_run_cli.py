@@ -182,6 +182,37 @@ def test_box_edges_move_onto_the_silhouettes_unless_told_not_to(tmp_path, room_p
         RunOptions(box_edges="grabcut")
 
 
+def test_ceiling_boundary_from_the_boundary_network_or_the_labels(tmp_path, room_png, monkeypatch):
+    """`--ceiling network` moves the labels' ceiling-wall boundary onto the boundary network's before the room
+    step; `--ceiling labels` keeps the fused labels' own; a bad mode is refused."""
+    pytest.importorskip("torch")
+    import layout.surfaces.boundary_net as bn
+
+    from apps.pipeline import RunOptions
+
+    calls = []
+    real = bn.load_boundary_net
+
+    def spy(*args, **kwargs):
+        calls.append(args)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(bn, "load_boundary_net", spy)
+    labels, used = {}, {}
+    for mode in ("network", "labels"):
+        out = tmp_path / mode
+        n = len(calls)
+        assert main(["run", str(room_png / "pano.png"), "--out", str(out), "--size", "512", "--no-objects",
+                     "--quiet", "--ceiling", mode]) == 0
+        used[mode] = len(calls) - n
+        labels[mode] = np.array(Image.open(out / "label_ids.png"))
+    assert used == {"network": 1, "labels": 0}
+    upper = slice(0, labels["labels"].shape[0] // 2)
+    assert not np.array_equal(labels["network"][upper], labels["labels"][upper])
+    with pytest.raises(ValueError, match="ceiling: expected one of"):
+        RunOptions(ceiling="edges")
+
+
 def test_a_box_around_the_whole_panorama_gets_no_pose_but_the_run_finishes(tmp_path, room_png):
     """A detection 360 degrees wide (a bed under the camera, seen all around) has no perspective crop: the run
     goes on without a pose for it instead of failing (seen on ../shared/data/real/lgtnet_demo)."""
@@ -199,13 +230,17 @@ def test_a_box_around_the_whole_panorama_gets_no_pose_but_the_run_finishes(tmp_p
 
 def test_model_choice_by_box_fit_recovers_the_camera_height(tmp_path, room_png):
     """`--models box` (default) picks models and camera height from the boxes; `--models appearance` is the
-    paper's nearest render. With the room's own boxes the box fit lands within 3 % of the true camera height."""
+    paper's nearest render. With the room's own boxes the box fit lands within 3 % of the true camera height.
+    The room is read with the labels' own ceiling boundary (`--ceiling labels`): with the boundary network's
+    (the default since session 19) this one room's camera height comes out 6.8 % high (1.635 m for 1.531 m),
+    although over the 88 rooms of seed 0 the error fell (docs/EVALUATION.md, "Session 19")."""
     gt = json.loads((room_png / "gt.json").read_text())
     heights = {}
     for mode in ("box", "appearance"):
         out = tmp_path / mode
         assert main(["run", str(room_png / "pano.png"), "--out", str(out), "--detector",
-                     f"annotations:{room_png / 'gt.json'}", "--size", "512", "--quiet", "--models", mode]) == 0
+                     f"annotations:{room_png / 'gt.json'}", "--size", "512", "--quiet", "--models", mode,
+                     "--ceiling", "labels"]) == 0
         scene = json.loads((out / "scene.json").read_text())
         heights[mode] = scene["camera"]["height_m"]
         assert ("models" in scene["timing_s"]) == (mode == "box")
