@@ -43,6 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._checks import rgb_pano
+from .gc_net import resize_wrapped
 
 __all__ = [
     "BOUNDARY_WEIGHTS",
@@ -198,12 +199,10 @@ class BoundaryNet:
     def __call__(self, pano: ArrayLike) -> NDArray[np.float64]:
         img = rgb_pano(pano)
         h, w = img.shape[:2]
-        rel = self.rows_at_work_size(img).astype(np.float64)
-        ww = rel.shape[1]
-        if ww != w:  # column centres (j + 0.5) * W / ww, wrapped
-            src = (np.arange(ww) + 0.5) * (w / ww)
-            dst = np.arange(w) + 0.5
-            rel = np.stack([np.interp(dst, src, r, period=w) for r in rel])
+        rel = self.rows_at_work_size(img)
+        if rel.shape[1] != w:  # columns resampled across the seam (pixel centres at integer + 0.5)
+            rel = resize_wrapped(rel, w, 2)
+        rel = rel.astype(np.float64)
         top = np.clip(rel[0] * h, 1.0, h / 2.0 - 1.0)
         bottom = np.clip(rel[1] * h, h / 2.0 + 1.0, h - 1.0)
         return np.stack([top, bottom])
