@@ -32,6 +32,7 @@ seed 0.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import json
 import math
@@ -143,9 +144,13 @@ def train(data: Path, val: Path, out: Path, *, iterations: int | None = None, mi
         prev = start.record.get("training")
         if prev:
             earlier = [*prev.get("earlier", []), {k: v for k, v in prev.items() if k != "earlier"}]
-        if config.input_size != size or tuple(config.classes) != tuple(classes):
-            raise ValueError(f"init: expected weights for input {size} and classes {list(classes)}, got input "
-                             f"{config.input_size} and classes {list(config.classes)}")
+        if tuple(config.classes) != tuple(classes):
+            raise ValueError(f"init: expected weights for classes {list(classes)}, got classes "
+                             f"{list(config.classes)}")
+        if config.input_size != size:
+            # the network is fully convolutional: only the tile size it learns on changes
+            log(f"init: weights trained on {config.input_size}-px tiles, continuing on {size}-px tiles")
+            config = dataclasses.replace(config, input_size=int(size))
         log(f"starting from {init}")
     else:
         config = NetConfig(tuple(classes), tuple(widths), int(head), int(size))

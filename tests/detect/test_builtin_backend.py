@@ -188,3 +188,19 @@ def test_training_cli_writes_weights_and_record(tmp_path):
     assert BuiltinDetector(out / "builtin.pt").input_size == 64
     seed0 = _fake_rooms(tmp_path / "seed0", 0)
     assert main(["--data", str(seed0), "--val", str(val), "--out", str(out), "--iterations", "1"]) == 2
+
+
+def test_training_continues_from_weights_on_another_tile_size(tmp_path):
+    from detect.builtin.train import main
+
+    data = _fake_rooms(tmp_path / "train", 3000, 2)
+    val = _fake_rooms(tmp_path / "val", 3500)
+    first, second = tmp_path / "w1", tmp_path / "w2"
+    assert main(["--data", str(data), "--val", str(val), "--out", str(first), "--iterations", "1",
+                 "--batch", "2", "--size", "64"]) == 0
+    assert main(["--data", str(data), "--val", str(val), "--out", str(second), "--iterations", "1",
+                 "--batch", "2", "--size", "96", "--init", str(first / "builtin.pt")]) == 0
+    rec = json.loads((second / "builtin.json").read_text())
+    assert rec["network"]["input_size"] == 96
+    assert [s["iterations"] for s in rec["training"]["earlier"]] == [1]
+    assert rec["training"]["init"] == str(first / "builtin.pt")
