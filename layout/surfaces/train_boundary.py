@@ -113,7 +113,8 @@ def evaluate_boundaries(model: BoundaryNet, data: SynthSet, targets: NDArray[np.
 
 def train_boundary(train: SynthSet, train_targets: NDArray[np.float32], val: SynthSet,
                    val_targets: NDArray[np.float32], out_dir: str | Path, *, epochs: int = 14, batch: int = 8,
-                   lr: float = 2e-3, seed: int = 0, max_minutes: float | None = None, log=print) -> dict:
+                   lr: float = 2e-3, seed: int = 0, max_minutes: float | None = None,
+                   init: str | Path | None = None, log=print) -> dict:
     """Train, keep the best epoch on ``val``, write ``boundary_net.pt`` and ``boundary_net.json``.
 
     Parameters
@@ -126,6 +127,10 @@ def train_boundary(train: SynthSet, train_targets: NDArray[np.float32], val: Syn
     epochs, batch, lr, seed : training settings (cosine learning rate from ``lr``).
     max_minutes : float, optional
         Stop after the epoch that passes this wall-clock budget.
+    init : str or Path, optional
+        Start from these weights (a ``boundary_net.pt`` with its record,
+        which is kept in the new record under ``"init"``; the network's
+        shape is then the stored one).
     log : callable
         Progress lines.
 
@@ -148,7 +153,18 @@ def train_boundary(train: SynthSet, train_targets: NDArray[np.float32], val: Syn
     out.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(seed)
     gen = torch.Generator().manual_seed(seed)
-    net = build_boundary_net(h)
+    init_record = None
+    if init is not None:
+        from .boundary_net import _load
+
+        start = _load(str(Path(init).resolve()))
+        if start.work_width != w:
+            raise ValueError(f"init: expected weights for working width {w}, got {start.work_width}")
+        net = build_boundary_net(h, start.net.channels, start.net.hidden)
+        net.load_state_dict(start.net.state_dict())
+        init_record = dict(start.record, path=str(init))
+    else:
+        net = build_boundary_net(h)
     opt = torch.optim.Adam(net.parameters(), lr=lr, weight_decay=1e-5)
     steps_per_epoch = int(math.ceil(len(train) / batch))
     total_steps = epochs * steps_per_epoch
@@ -210,6 +226,9 @@ def train_boundary(train: SynthSet, train_targets: NDArray[np.float32], val: Syn
         "epochs_planned": epochs,
         "epochs_done": done_epochs,
         "best_epoch": best["epoch"],
+        "init": init_record,
+        "epochs_total": done_epochs + (int(init_record.get("epochs_total", init_record.get("epochs_done", 0)))
+                                       if init_record else 0),
         "batch": batch,
         "optimizer": f"Adam lr {lr} weight_decay 1e-5, warm-up {warm} steps, cosine to 2% of lr",
         "loss": "L1 on both boundaries (rows / height)",
@@ -240,6 +259,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--work-width", type=int, default=512)
     ap.add_argument("--max-minutes", type=float, default=None, help="stop after the epoch that passes this budget")
     ap.add_argument("--threads", type=int, default=1, help="torch threads")
+    ap.add_argument("--init", default=None, help="start from these weights (boundary_net.pt; its record is kept)")
     args = ap.parse_args(argv)
     import torch
 
@@ -263,7 +283,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"train_boundary: {len(train)} training rooms, {len(val)} validation rooms at {train.images.shape[2]}x"
           f"{train.images.shape[1]}", file=sys.stderr)
     rec = train_boundary(train, train_t, val, val_t, args.out, epochs=args.epochs, batch=args.batch, lr=args.lr,
-                         seed=args.seed, max_minutes=args.max_minutes,
+                         seed=args.seed, max_minutes=args.max_minutes, init=args.init,
                          log=lambda s: print(s, file=sys.stderr, flush=True))
     print(json.dumps({"val": {k: rec["val"][k] for k in ("ceiling_mae_px", "floor_mae_px")},
                       "epochs_done": rec["epochs_done"], "best_epoch": rec["best_epoch"], "params": rec["params"]}))

@@ -126,6 +126,15 @@ def test_training_script_writes_loadable_weights_and_a_record(tmp_path):
     assert stored["val"]["ceiling_mae_px"] == rec["val"]["ceiling_mae_px"]
     model = load_boundary_net(tmp_path / "w" / "boundary_net.pt")
     assert model.work_width == 64 and model.record["train"]["rooms"] == 4
+    # a second stage starts from the first one's weights: its first epoch begins where they ended
+    rec2 = train_boundary(tr, tr_t, va, va_t, tmp_path / "w2", epochs=1, batch=2, lr=1e-4,
+                          init=tmp_path / "w" / "boundary_net.pt", log=lambda s: None)
+    assert rec2["init"]["path"] == str(tmp_path / "w" / "boundary_net.pt") and rec2["epochs_total"] == 4
+    assert rec2["history"][0]["loss"] < rec["history"][0]["loss"]
+    with pytest.raises(ValueError, match="working width"):
+        va128, va128_t = load_boundary_folder(tmp_path / "val", 128)
+        train_boundary(va128, va128_t, va128, va128_t, tmp_path / "w3", epochs=1,
+                       init=tmp_path / "w" / "boundary_net.pt", log=lambda s: None)
     # the command line refuses a validation set that was trained on, and the evaluation / tuning seeds
     assert main(["--data", str(tmp_path / "train"), "--val", str(tmp_path / "train"), "--out",
                  str(tmp_path / "x"), "--work-width", "64"]) == 2
