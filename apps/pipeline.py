@@ -15,7 +15,10 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
    moved onto the one the boundary network regresses per column
    (:mod:`layout.surfaces.boundary_net`, ``RunOptions.ceiling``)
 5. room geometry from the labels: Manhattan floor polygon and wall height,
-   metric under an assumed camera height (:mod:`layout.roomgeom`)
+   metric under an assumed camera height (:mod:`layout.roomgeom`); where the
+   object boxes leave the polygon explaining few of its wall columns, the room
+   of the panorama labelled without them when that explains more
+   (:func:`_room_without_boxes`)
 6. object crops (the region each detection's tile box bounds, :func:`object_crop`)
    -> HOG -> k-NN against the model library's renders -> pose CRF by TRW-S
    -> yaw and model per object (:mod:`posecrf`); not in the paper, the E_o tables
@@ -68,6 +71,10 @@ CEILING_MODES = ("labels", "network")
 #: chosen on the tuning seeds 7000 and 8000 among 0.1 and 0.3 (docs/EVALUATION.md, session 10). Over the yaws of
 #: one crop the cost spans about 9, E_o (HOG distance) about 0.3 (``benchmarks/eval_orientnet.py vs-hog``).
 ORIENTATION_WEIGHT = 0.1
+#: With the object boxes masked, a room polygon explaining fewer than this share of its observed wall columns is
+#: compared with the room of the panorama labelled without the boxes (:func:`_room_without_boxes`); the room
+#: step's own threshold for unreliable labels (``robust_below`` of :func:`layout.roomgeom.estimate_room_geometry`).
+UNMASKED_ROOM_BELOW = 0.75
 
 
 @dataclass(frozen=True)
@@ -333,6 +340,36 @@ def _poses(upright: np.ndarray, dets: list, prog: Progress, crop_mode: str = "ti
     return out
 
 
+def _room_without_boxes(upright: np.ndarray, surf: Any, geom: Any, camera_height: float, ceiling_net: bool,
+                        notes: list[str]) -> tuple[Any, Any]:
+    """The labels and room of the panorama labelled without the object boxes, where they explain the room better.
+
+    The boxes are masked so that furniture does not pass for walls; but boxes
+    over most of the floor-wall boundary (false detections, or a room full of
+    furniture) leave the room step too little to go on. With the boxes masked
+    the polygon ``geom`` explains fewer than ``UNMASKED_ROOM_BELOW`` of the
+    wall columns it observes: the panorama is labelled again without them
+    (what ``--no-objects`` does), and that room is kept when its polygon
+    explains a larger share of its own observed wall columns
+    (``RoomGeometry.inlier_fraction``). Returns ``(surf, geom)``, the
+    unmasked pair or the given one.
+    """
+    from layout.roomgeom import RoomGeometryError, estimate_room_geometry
+    from layout.surfaces import estimate_surfaces
+
+    free = estimate_surfaces(upright, ceiling_net=ceiling_net)
+    try:
+        geom_free = estimate_room_geometry(free.labels, camera_height)
+    except RoomGeometryError:
+        return surf, geom
+    if geom_free.inlier_fraction <= geom.inlier_fraction:
+        return surf, geom
+    notes.append(f"room geometry ignored the object boxes (with them masked the polygon explains "
+                 f"{100 * geom.inlier_fraction:.0f}% of the observed wall columns, without them "
+                 f"{100 * geom_free.inlier_fraction:.0f}%)")
+    return free, geom_free
+
+
 def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | None = None) -> PipelineResult:
     """Run the whole pipeline on an RGB panorama.
 
@@ -404,6 +441,9 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
                     geom = estimate_room_geometry(surf.labels, h0)
                 except RoomGeometryError as exc2:
                     raise UserError(f"no room layout could be found in this panorama ({exc2})") from None
+        else:
+            if obj_mask.any() and geom.inlier_fraction < UNMASKED_ROOM_BELOW:
+                surf, geom = _room_without_boxes(upright, surf, geom, h0, ceiling_net, notes)
         if geom.uncertain:
             notes.append("uncertain layout: " + "; ".join(geom.reasons))
 

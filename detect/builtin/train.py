@@ -2,11 +2,11 @@
 
 Usage::
 
-    pano2cad synth --seed 3000 --rooms 720 --size 1024 --out out/train/detect   # run 6; runs 1-5: 240
-    pano2cad synth --seed 3500 --rooms 30 --size 1024 --out out/train/detect_val
+    pano2cad synth --seed 3000 --rooms 1440 --size 1024 --out out/train/detect   # run 7; run 6: 720, 1-5: 240
+    pano2cad synth --seed 3500 --rooms 90 --size 1024 --out out/train/detect_val  # run 7; runs 1-6: 30
     python -m detect.builtin.train --data out/train/detect --val out/train/detect_val \\
         --out detect/builtin/weights --minutes 25
-    # optionally more stages, each starting from the last weights:
+    # optionally more stages, each starting from the last weights (run 7: --size 224 --lr 1e-3 --minutes 90):
     python -m detect.builtin.train ... --init detect/builtin/weights/builtin.pt --seed 1 --lr 2e-3
 
 Every iteration draws a batch of random perspective tiles from the training

@@ -16,7 +16,12 @@ in ``layout/surfaces/weights/boundary_net.json``)::
     for s in 1004 1005 1006 1007; do $S --seed $s --rooms 150 --out out/train/surfaces/train-$s; done
     $S --seed 2000 --rooms 40 --out out/train/surfaces/val
     .venv/bin/python -m layout.surfaces.train_boundary --data out/train/surfaces/train-100[0-7] \\
-        --val out/train/surfaces/val --out layout/surfaces/weights --epochs 24
+        --val out/train/surfaces/val --out out/train/boundary1 --epochs 24
+    # second stage (session 20), from those weights on twice the rooms:
+    for s in $(seq 1008 1014); do $S --seed $s --rooms 150 --out out/train/surfaces/train-$s; done
+    .venv/bin/python -m layout.surfaces.train_boundary --data out/train/surfaces/train-10[0-1][0-9] \\
+        --val out/train/surfaces/val --out layout/surfaces/weights --epochs 16 --lr 1e-3 \\
+        --init out/train/boundary1/boundary_net.pt
 
 Training: Adam with a cosine learning rate, batches of full panoramas at the
 working size (512x256), L1 loss on both boundaries (rows / height), the GC

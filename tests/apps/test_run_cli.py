@@ -306,3 +306,33 @@ def test_eval_with_the_scale_from_gt_json(room_png, tmp_path, capsys):
     assert main(["eval", "--data", str(data.parent), "--out", str(tmp_path / "ev2"), "--gt-scale",
                  "--camera-height", "1.5", "--quiet"]) == 2
     _one_line_error(capsys, "--gt-scale")
+
+
+def test_room_without_boxes_is_kept_only_where_it_explains_more(monkeypatch):
+    """Boxes over most of the floor-wall boundary (false detections on a real photo) can leave the masked room
+    step explaining few of its wall columns: the panorama is labelled again without them and that room is kept
+    only when its polygon explains a larger share of its own columns."""
+    from types import SimpleNamespace
+
+    import layout.roomgeom
+    import layout.surfaces
+    from apps.pipeline import _room_without_boxes
+
+    pano = np.zeros((4, 8, 3), np.uint8)
+    masked_surf, masked_geom = object(), SimpleNamespace(inlier_fraction=0.45)
+    free_surf = SimpleNamespace(labels=np.zeros((4, 8), np.uint8), warnings=())
+    monkeypatch.setattr(layout.surfaces, "estimate_surfaces", lambda pano, ceiling_net=None: free_surf)
+    for free_inliers, expect_free in ((0.50, True), (0.45, False), (0.30, False)):
+        free_geom = SimpleNamespace(inlier_fraction=free_inliers)
+        monkeypatch.setattr(layout.roomgeom, "estimate_room_geometry", lambda labels, h, **kw: free_geom)
+        notes: list[str] = []
+        got = _room_without_boxes(pano, masked_surf, masked_geom, 1.6, True, notes)
+        assert got == ((free_surf, free_geom) if expect_free else (masked_surf, masked_geom))
+        assert notes == (["room geometry ignored the object boxes (with them masked the polygon explains 45% of "
+                          "the observed wall columns, without them 50%)"] if expect_free else [])
+
+    def fails(labels, h, **kw):
+        raise layout.roomgeom.RoomGeometryError("no wall")
+
+    monkeypatch.setattr(layout.roomgeom, "estimate_room_geometry", fails)
+    assert _room_without_boxes(pano, masked_surf, masked_geom, 1.6, True, []) == (masked_surf, masked_geom)
