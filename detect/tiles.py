@@ -14,6 +14,8 @@ Steps of :func:`detect_panorama`:
 3. back-project each tile box into the panorama with panogeom's
    :func:`~panogeom.perspective.box_to_pano` (seam- and pole-aware extent),
    keeping the tile and box so the object's region on the sphere is exact;
+   boxes around the nadir, where the camera stands, are dropped
+   (:func:`contains_nadir`);
 4. merge the same object seen from several tiles with
    :func:`~detect.nms.merge_sphere`, class-aware; each merged detection
    keeps the boxes of the tiles that see it whole (``Detection.views``),
@@ -51,6 +53,7 @@ __all__ = [
     "render_tiles",
     "to_panorama",
     "tile_detections",
+    "contains_nadir",
     "detect_panorama",
     "tile_consensus",
     "box_in_view",
@@ -207,9 +210,34 @@ def _run_detector(detector: Detector, tiles: list[NDArray[np.uint8]],
     return res
 
 
+def contains_nadir(box: ArrayLike, view: PinholeView) -> bool:
+    """Whether a box of a perspective view contains the nadir, the point straight below the camera.
+
+    Parameters
+    ----------
+    box : (4,) float
+        ``(u0, v0, u1, v1)`` in the view's pixels.
+    view : PinholeView
+
+    Returns
+    -------
+    bool
+        True when the nadir ray projects in front of the view, inside the box.
+
+    Examples
+    --------
+    >>> down = PinholeView(yaw=0.0, pitch=-np.pi / 2, roll=0.0, fov=np.pi / 2, width=100, height=100)
+    >>> contains_nadir([40, 40, 60, 60], down), contains_nadir([0, 0, 30, 30], down)
+    (True, False)
+    """
+    b = np.asarray(box, dtype=np.float64)
+    uv, front = view.ray_to_pixel(np.array([[0.0, 0.0, -1.0]]))
+    return bool(front[0] and b[0] <= uv[0, 0] <= b[2] and b[1] <= uv[0, 1] <= b[3])
+
+
 def tile_detections(pano: ArrayLike, detector: Detector, views: Sequence[PinholeView] | None = None, *,
                     tile_size: int = 416, batch_size: int | None = None, score_threshold: float = 0.0,
-                    truncation_margin: float = 2.0) -> list[Detection]:
+                    truncation_margin: float = 2.0, keep_nadir: bool = False) -> list[Detection]:
     """Raw detections of every tile in panorama pixels, before NMS.
 
     Parameters
@@ -225,6 +253,12 @@ def tile_detections(pano: ArrayLike, detector: Detector, views: Sequence[Pinhole
         Detections scoring below are dropped.
     truncation_margin : float
         See :func:`to_panorama`.
+    keep_nadir : bool
+        Keep tile boxes that contain the nadir (:func:`contains_nadir`). By
+        default they are dropped: the camera stands there, so no object on
+        the floor surrounds that point, and such a box (a near object cut by
+        a downward tile's border, or the tripod) would span the panorama's
+        whole width.
 
     Returns
     -------
@@ -242,7 +276,7 @@ def tile_detections(pano: ArrayLike, detector: Detector, views: Sequence[Pinhole
             if d.score < score_threshold:
                 continue
             c = d.clipped(view.width, view.height)
-            if c is not None:
+            if c is not None and (keep_nadir or not contains_nadir(c.box, view)):
                 out.append(to_panorama(c, view, W, H, index=k, truncation_margin=truncation_margin))
     return out
 
@@ -251,8 +285,8 @@ def detect_panorama(pano: ArrayLike, detector: Detector | PanoramaDetector,
                     views: Sequence[PinholeView] | None = None, *, tile_size: int = 416,
                     score_threshold: float = 0.0, iou_threshold: float = 0.5, containment: float = 0.5,
                     truncated_weight: float = 0.5, consensus: float = 0.5, batch_size: int | None = None,
-                    masks: bool = False,
-                    grabcut_iterations: int = 5) -> list[Detection]:
+                    masks: bool = False, grabcut_iterations: int = 5,
+                    keep_nadir: bool = False) -> list[Detection]:
     """Detect objects in a panorama through perspective tiles, merged by NMS on the sphere.
 
     Parameters
@@ -277,6 +311,8 @@ def detect_panorama(pano: ArrayLike, detector: Detector | PanoramaDetector,
     masks : bool
         Also segment each detection by grab-cut (``Detection.mask``).
     grabcut_iterations : int
+    keep_nadir : bool
+        Keep tile boxes around the nadir (see :func:`tile_detections`).
 
     Returns
     -------
@@ -299,7 +335,7 @@ def detect_panorama(pano: ArrayLike, detector: Detector | PanoramaDetector,
     img = _check_pano(pano)
     if isinstance(detector, Detector):
         raw = tile_detections(img, detector, views, tile_size=tile_size, batch_size=batch_size,
-                              score_threshold=score_threshold)
+                              score_threshold=score_threshold, keep_nadir=keep_nadir)
         vs = tuple(detection_views(int(tile_size)) if views is None else views)
         groups = merge_sphere(raw, iou_threshold, containment=containment, truncated_weight=truncated_weight)
         dets = [d for d in tile_consensus(groups, vs, consensus) if d.score >= score_threshold]

@@ -9,10 +9,10 @@ from hypothesis import strategies as st
 
 from detect.detection import Detection, ImageDetection
 from detect.nms import pano_box_iou
-from detect.tiles import (PanoramaTiler, box_in_view, detect_panorama, render_tiles, tile_detections,
-                          to_panorama)
+from detect.tiles import (PanoramaTiler, box_in_view, contains_nadir, detect_panorama, render_tiles,
+                          tile_detections, to_panorama)
 from panogeom.coords import pixel_grid_rays
-from panogeom.perspective import detection_views, equirect_to_perspective
+from panogeom.perspective import PinholeView, detection_views, equirect_to_perspective
 
 W, H = 1024, 512
 VIEWS = detection_views(256)
@@ -188,3 +188,24 @@ def test_driver_rejects_what_is_not_a_detector(synth):
 
     with pytest.raises(TypeError, match="expected ImageDetection records, got tuple"):
         detect_panorama(synth.grey_pano(64), Wrong(), tile_size=32)
+
+
+class LowerHalf:
+    """Boxes the lower half of every tile: around the nadir in a tile that looks straight down."""
+
+    def detect(self, image):
+        h, w = image.shape[:2]
+        return [ImageDetection("bed", 0.9, [1.0, h / 2, w - 1.0, h - 1.0])]
+
+
+def test_tile_boxes_around_the_nadir_are_dropped_unless_kept(synth):
+    pano = synth.grey_pano(128)
+    views = [PinholeView(yaw=0.0, pitch=0.0, roll=0.0, fov=np.pi / 2, width=64, height=64),
+             PinholeView(yaw=0.3, pitch=-np.deg2rad(60), roll=0.0, fov=np.pi / 2, width=64, height=64)]
+    assert [contains_nadir([1.0, 32.0, 63.0, 63.0], v) for v in views] == [False, True]
+    kept = tile_detections(pano, LowerHalf(), views, keep_nadir=True)
+    assert [d.tile.index for d in kept] == [0, 1]
+    assert kept[1].box[0] == 0.0 and kept[1].box[2] == pano.shape[1]  # the whole width: no object is that
+    dropped = tile_detections(pano, LowerHalf(), views)
+    assert [d.tile.index for d in dropped] == [0]
+    assert [d.tile.index for d in detect_panorama(pano, LowerHalf(), views)] == [0]
