@@ -365,8 +365,8 @@ def _room_without_boxes(upright: np.ndarray, surf: Any, geom: Any, camera_height
     if geom_free.inlier_fraction <= geom.inlier_fraction:
         return surf, geom
     notes.append(f"room geometry ignored the object boxes (with them masked the polygon explains "
-                 f"{100 * geom.inlier_fraction:.0f}% of the observed wall columns, without them "
-                 f"{100 * geom_free.inlier_fraction:.0f}%)")
+                 f"{100 * geom.inlier_fraction:.1f}% of the observed wall columns, without them "
+                 f"{100 * geom_free.inlier_fraction:.1f}%)")
     return free, geom_free
 
 

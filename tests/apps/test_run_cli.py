@@ -328,8 +328,8 @@ def test_room_without_boxes_is_kept_only_where_it_explains_more(monkeypatch):
         notes: list[str] = []
         got = _room_without_boxes(pano, masked_surf, masked_geom, 1.6, True, notes)
         assert got == ((free_surf, free_geom) if expect_free else (masked_surf, masked_geom))
-        assert notes == (["room geometry ignored the object boxes (with them masked the polygon explains 45% of "
-                          "the observed wall columns, without them 50%)"] if expect_free else [])
+        assert notes == (["room geometry ignored the object boxes (with them masked the polygon explains 45.0% of "
+                          "the observed wall columns, without them 50.0%)"] if expect_free else [])
 
     def fails(labels, h, **kw):
         raise layout.roomgeom.RoomGeometryError("no wall")
