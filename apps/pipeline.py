@@ -71,10 +71,6 @@ CEILING_MODES = ("labels", "network")
 #: chosen on the tuning seeds 7000 and 8000 among 0.1 and 0.3 (docs/EVALUATION.md, session 10). Over the yaws of
 #: one crop the cost spans about 9, E_o (HOG distance) about 0.3 (``benchmarks/eval_orientnet.py vs-hog``).
 ORIENTATION_WEIGHT = 0.1
-#: With the object boxes masked, a room polygon explaining fewer than this share of its observed wall columns is
-#: compared with the room of the panorama labelled without the boxes (:func:`_room_without_boxes`); the room
-#: step's own threshold for unreliable labels (``robust_below`` of :func:`layout.roomgeom.estimate_room_geometry`).
-UNMASKED_ROOM_BELOW = 0.75
 
 
 @dataclass(frozen=True)
@@ -340,26 +336,37 @@ def _poses(upright: np.ndarray, dets: list, prog: Progress, crop_mode: str = "ti
     return out
 
 
+def _unmasked_room(upright: np.ndarray, camera_height: float, ceiling_net: bool) -> tuple[Any, Any]:
+    """``(surf, geom)`` of the panorama labelled again without the object boxes (what ``--no-objects`` does).
+
+    Raises :class:`layout.roomgeom.RoomGeometryError` when those labels give no room either.
+    """
+    from layout.roomgeom import estimate_room_geometry
+    from layout.surfaces import estimate_surfaces
+
+    surf = estimate_surfaces(upright, ceiling_net=ceiling_net)
+    return surf, estimate_room_geometry(surf.labels, camera_height)
+
+
 def _room_without_boxes(upright: np.ndarray, surf: Any, geom: Any, camera_height: float, ceiling_net: bool,
                         notes: list[str]) -> tuple[Any, Any]:
     """The labels and room of the panorama labelled without the object boxes, where they explain the room better.
 
     The boxes are masked so that furniture does not pass for walls; but boxes
     over most of the floor-wall boundary (false detections, or a room full of
-    furniture) leave the room step too little to go on. With the boxes masked
-    the polygon ``geom`` explains fewer than ``UNMASKED_ROOM_BELOW`` of the
-    wall columns it observes: the panorama is labelled again without them
-    (what ``--no-objects`` does), and that room is kept when its polygon
-    explains a larger share of its own observed wall columns
+    furniture) leave the room step too little to go on. The caller asks when,
+    with the boxes masked, the polygon ``geom`` explains fewer than
+    :data:`layout.roomgeom.RELIABLE_INLIER_FRACTION` of the wall columns it
+    observes: the panorama is labelled again without them
+    (:func:`_unmasked_room`), and that room is kept when its polygon explains
+    a larger share of its own observed wall columns
     (``RoomGeometry.inlier_fraction``). Returns ``(surf, geom)``, the
     unmasked pair or the given one.
     """
-    from layout.roomgeom import RoomGeometryError, estimate_room_geometry
-    from layout.surfaces import estimate_surfaces
+    from layout.roomgeom import RoomGeometryError
 
-    free = estimate_surfaces(upright, ceiling_net=ceiling_net)
     try:
-        geom_free = estimate_room_geometry(free.labels, camera_height)
+        free, geom_free = _unmasked_room(upright, camera_height, ceiling_net)
     except RoomGeometryError:
         return surf, geom
     if geom_free.inlier_fraction <= geom.inlier_fraction:
@@ -387,7 +394,7 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
     from layout.likelihood import observe_labels, surface_likelihood
     from layout.modelfit import candidate_yaws, occluded_edges, select_models
     from posecrf.library import builtin_library
-    from layout.roomgeom import RoomGeometryError, estimate_room_geometry
+    from layout.roomgeom import RELIABLE_INLIER_FRACTION, RoomGeometryError, estimate_room_geometry
     from layout.sampler import DetectedObject, PosteriorError, SamplerConfig, map_estimate
     from layout.scene import Scene
     from layout.surfaces import estimate_surfaces
@@ -435,14 +442,13 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
                 geom = estimate_room_geometry(surf.labels, h0)
             except RoomGeometryError:
                 # The labels themselves were computed with the boxes masked: label the panorama again without
-                # them (what --no-objects does) and keep those labels for the room and the sampler.
-                surf = estimate_surfaces(upright, ceiling_net=ceiling_net)
+                # them and keep those labels for the room and the sampler.
                 try:
-                    geom = estimate_room_geometry(surf.labels, h0)
+                    surf, geom = _unmasked_room(upright, h0, ceiling_net)
                 except RoomGeometryError as exc2:
                     raise UserError(f"no room layout could be found in this panorama ({exc2})") from None
         else:
-            if obj_mask.any() and geom.inlier_fraction < UNMASKED_ROOM_BELOW:
+            if obj_mask.any() and geom.inlier_fraction < RELIABLE_INLIER_FRACTION:
                 surf, geom = _room_without_boxes(upright, surf, geom, h0, ceiling_net, notes)
         if geom.uncertain:
             notes.append("uncertain layout: " + "; ".join(geom.reasons))

@@ -15,7 +15,7 @@ Steps of :func:`detect_panorama`:
    :func:`~panogeom.perspective.box_to_pano` (seam- and pole-aware extent),
    keeping the tile and box so the object's region on the sphere is exact;
    boxes around the nadir, where the camera stands, are dropped
-   (:func:`contains_nadir`);
+   (:func:`~panogeom.perspective.poles_in_box`);
 4. merge the same object seen from several tiles with
    :func:`~detect.nms.merge_sphere`, class-aware; each merged detection
    keeps the boxes of the tiles that see it whole (``Detection.views``),
@@ -41,7 +41,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from panogeom.coords import ray_to_pixel
-from panogeom.perspective import PinholeView, box_to_pano, detection_views
+from panogeom.perspective import PinholeView, box_to_pano, detection_views, poles_in_box
 from panogeom.sampling import sample_equirect
 
 from .detection import (BatchDetector, Detection, Detector, ImageDetection, PanoramaDetector, TileBox,
@@ -53,7 +53,6 @@ __all__ = [
     "render_tiles",
     "to_panorama",
     "tile_detections",
-    "contains_nadir",
     "detect_panorama",
     "tile_consensus",
     "box_in_view",
@@ -210,31 +209,6 @@ def _run_detector(detector: Detector, tiles: list[NDArray[np.uint8]],
     return res
 
 
-def contains_nadir(box: ArrayLike, view: PinholeView) -> bool:
-    """Whether a box of a perspective view contains the nadir, the point straight below the camera.
-
-    Parameters
-    ----------
-    box : (4,) float
-        ``(u0, v0, u1, v1)`` in the view's pixels.
-    view : PinholeView
-
-    Returns
-    -------
-    bool
-        True when the nadir ray projects in front of the view, inside the box.
-
-    Examples
-    --------
-    >>> down = PinholeView(yaw=0.0, pitch=-np.pi / 2, roll=0.0, fov=np.pi / 2, width=100, height=100)
-    >>> contains_nadir([40, 40, 60, 60], down), contains_nadir([0, 0, 30, 30], down)
-    (True, False)
-    """
-    b = np.asarray(box, dtype=np.float64)
-    uv, front = view.ray_to_pixel(np.array([[0.0, 0.0, -1.0]]))
-    return bool(front[0] and b[0] <= uv[0, 0] <= b[2] and b[1] <= uv[0, 1] <= b[3])
-
-
 def tile_detections(pano: ArrayLike, detector: Detector, views: Sequence[PinholeView] | None = None, *,
                     tile_size: int = 416, batch_size: int | None = None, score_threshold: float = 0.0,
                     truncation_margin: float = 2.0, keep_nadir: bool = False) -> list[Detection]:
@@ -254,7 +228,8 @@ def tile_detections(pano: ArrayLike, detector: Detector, views: Sequence[Pinhole
     truncation_margin : float
         See :func:`to_panorama`.
     keep_nadir : bool
-        Keep tile boxes that contain the nadir (:func:`contains_nadir`). By
+        Keep tile boxes that contain the nadir
+        (:func:`~panogeom.perspective.poles_in_box`). By
         default they are dropped: the camera stands there, so no object on
         the floor surrounds that point, and such a box (a near object cut by
         a downward tile's border, or the tripod) would span the panorama's
@@ -276,7 +251,7 @@ def tile_detections(pano: ArrayLike, detector: Detector, views: Sequence[Pinhole
             if d.score < score_threshold:
                 continue
             c = d.clipped(view.width, view.height)
-            if c is not None and (keep_nadir or not contains_nadir(c.box, view)):
+            if c is not None and (keep_nadir or not poles_in_box(c.box, view)[1]):
                 out.append(to_panorama(c, view, W, H, index=k, truncation_margin=truncation_margin))
     return out
 

@@ -90,12 +90,18 @@ __all__ = [
     "column_wall_runs",
     "prune_walls",
     "estimate_room_geometry",
+    "RELIABLE_INLIER_FRACTION",
 ]
 
 FloatArray = NDArray[np.float64]
 Method = Literal["columns", "pointcloud"]
 Prefer = Literal["ceiling", "floor", "wall"]
 CeilingEstimate = Literal["lowest_mode", "median"]
+
+#: A polygon explaining fewer than this share of its observed wall columns (``RoomGeometry.inlier_fraction``) is
+#: taken to rest on unreliable labels: :func:`estimate_room_geometry` then chooses it robustly (``robust_below``)
+#: and flags the room uncertain.
+RELIABLE_INLIER_FRACTION = 0.75
 
 #: Walls are never closer than this to the camera, in camera heights (boundary at the horizon is no wall).
 _MAX_DISTANCE = 40.0
@@ -888,7 +894,7 @@ def estimate_room_geometry(labels: ArrayLike, camera_height: float = DEFAULT_CAM
                            corner_cost: float = 0.125, robust: bool = True, pixel_error: float = 2.0,
                            corner_columns: float | None = None, prefer: Prefer = "ceiling",
                            shape_axis: bool = True, ceiling_estimate: CeilingEstimate = "lowest_mode",
-                           robust_below: float = 0.75, split_steps: bool = True) -> RoomGeometry:
+                           robust_below: float = RELIABLE_INLIER_FRACTION, split_steps: bool = True) -> RoomGeometry:
     """Manhattan floor polygon and wall height of the room seen in a surface-label panorama.
 
     Parameters
@@ -910,8 +916,8 @@ def estimate_room_geometry(labels: ArrayLike, camera_height: float = DEFAULT_CAM
         pixels): a weakly supported wall is kept only if the polygon with it
         reproduces ``2 * corner_cost * H`` more label pixels than without.
     robust : bool
-        When the polygon chosen by label agreement explains fewer than 75 %
-        of the observed wall columns (unreliable labels), choose instead
+        When the polygon chosen by label agreement explains fewer than
+        ``robust_below`` of the observed wall columns (unreliable labels), choose instead
         among it, its walls pruned under a robust cost of the column
         distances, and a fitted rectangle, each with its wall lines refitted
         robustly (:func:`_robust_selection`); else (``False``) fall back to
@@ -927,6 +933,8 @@ def estimate_room_geometry(labels: ArrayLike, camera_height: float = DEFAULT_CAM
         See :func:`observe_columns`. ``prefer="floor", shape_axis=False,
         ceiling_estimate="median", robust=False`` reproduce the estimator
         before furniture-robustness was added.
+    robust_below : float
+        See ``robust`` (default :data:`RELIABLE_INLIER_FRACTION`).
     split_steps : bool
         Cut runs of columns where their wall offset steps between two flat
         parts (see :func:`column_wall_runs`; ``False``: the estimator
@@ -1024,7 +1032,7 @@ def estimate_room_geometry(labels: ArrayLike, camera_height: float = DEFAULT_CAM
         if robust_choice:
             reasons.append(robust_choice)
         inl = _inlier_fraction(plan.polygon, ceiling_z, h_cam, obs)
-    if inl < 0.75 and plan.polygon.shape != (4, 2) and not robust:
+    if inl < RELIABLE_INLIER_FRACTION and plan.polygon.shape != (4, 2) and not robust:
         # a non-Manhattan room or bad labels: the rectangle around the observed walls may explain them better
         rect = close_manhattan_polygon([], points=points)
         if score(rect) > score(plan):
@@ -1032,7 +1040,7 @@ def estimate_room_geometry(labels: ArrayLike, camera_height: float = DEFAULT_CAM
             reasons.append("the bounding rectangle of the observed walls explains the labels better than the closed "
                            "polygon")
             inl = _inlier_fraction(plan.polygon, ceiling_z, h_cam, obs)
-    if inl < 0.75:
+    if inl < RELIABLE_INLIER_FRACTION:
         reasons.append(f"the polygon explains only {100 * inl:.0f}% of the observed wall columns "
                        "(non-Manhattan room or bad labels?)")
     return RoomGeometry(floor=plan.polygon, ceiling_z=float(ceiling_z), camera_height=h_cam,

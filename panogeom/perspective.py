@@ -43,6 +43,7 @@ __all__ = [
     "segment_to_arc",
     "arc_points",
     "box_to_pano",
+    "poles_in_box",
     "BoxInPano",
     "pano_box_union",
 ]
@@ -350,6 +351,34 @@ def _extent_from_rays(rays: Array, center: Array, pano_width: int, pano_height: 
     return np.array([np.mod(u0, pano_width), v0, np.mod(u1, pano_width), v1])
 
 
+def poles_in_box(box: ArrayLike, view: PinholeView) -> tuple[bool, bool]:
+    """Whether the zenith and the nadir (straight above and below the camera) lie inside a box of a view.
+
+    Parameters
+    ----------
+    box : (4,) float
+        ``(u0, v0, u1, v1)`` in the view's pixels.
+    view : PinholeView
+
+    Returns
+    -------
+    (zenith, nadir) : (bool, bool)
+        True where that pole projects in front of the view, inside the box
+        (edges included). A box around a pole spans the panorama's whole
+        width (:func:`box_to_pano`).
+
+    Examples
+    --------
+    >>> down = PinholeView(yaw=0.0, pitch=-np.pi / 2, roll=0.0, fov=np.pi / 2, width=100, height=100)
+    >>> poles_in_box([40, 40, 60, 60], down), poles_in_box([0, 0, 30, 30], down)
+    ((False, True), (False, False))
+    """
+    b = np.asarray(box, dtype=np.float64)
+    puv, front = view.ray_to_pixel(np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]]))
+    inside = front & (puv[:, 0] >= b[0]) & (puv[:, 0] <= b[2]) & (puv[:, 1] >= b[1]) & (puv[:, 1] <= b[3])
+    return bool(inside[0]), bool(inside[1])
+
+
 def box_to_pano(box: ArrayLike, view: PinholeView, pano_width: int, pano_height: int,
                 samples_per_edge: int = 16) -> BoxInPano:
     """Back-project an axis-aligned box of a perspective view into the panorama.
@@ -380,11 +409,8 @@ def box_to_pano(box: ArrayLike, view: PinholeView, pano_width: int, pano_height:
     # can lie between samples, so add the exact extremes of each edge arc.
     ends = view.pixel_to_ray(corners)
     dense = np.concatenate([rays, _arc_extremes(ends, np.roll(ends, -1, axis=0), np.array([0.0, 0.0, 1.0]))])
-    poles = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, -1.0]])
-    puv, front = view.ray_to_pixel(poles)
-    inside = front & (puv[:, 0] >= b[0]) & (puv[:, 0] <= b[2]) & (puv[:, 1] >= b[1]) & (puv[:, 1] <= b[3])
     center = view.pixel_to_ray(np.array([(b[0] + b[2]) / 2, (b[1] + b[3]) / 2]))
-    extent = _extent_from_rays(dense, center, pano_width, pano_height, (bool(inside[0]), bool(inside[1])))
+    extent = _extent_from_rays(dense, center, pano_width, pano_height, poles_in_box(b, view))
     return BoxInPano(outline=ray_to_pixel(rays, pano_width, pano_height), extent=extent)
 
 

@@ -9,10 +9,10 @@ from hypothesis import strategies as st
 
 from detect.detection import Detection, ImageDetection
 from detect.nms import pano_box_iou
-from detect.tiles import (PanoramaTiler, box_in_view, contains_nadir, detect_panorama, render_tiles,
-                          tile_detections, to_panorama)
+from detect.tiles import (PanoramaTiler, box_in_view, detect_panorama, render_tiles, tile_detections,
+                          to_panorama)
 from panogeom.coords import pixel_grid_rays
-from panogeom.perspective import PinholeView, detection_views, equirect_to_perspective
+from panogeom.perspective import PinholeView, detection_views, equirect_to_perspective, poles_in_box
 
 W, H = 1024, 512
 VIEWS = detection_views(256)
@@ -202,7 +202,7 @@ def test_tile_boxes_around_the_nadir_are_dropped_unless_kept(synth):
     pano = synth.grey_pano(128)
     views = [PinholeView(yaw=0.0, pitch=0.0, roll=0.0, fov=np.pi / 2, width=64, height=64),
              PinholeView(yaw=0.3, pitch=-np.deg2rad(60), roll=0.0, fov=np.pi / 2, width=64, height=64)]
-    assert [contains_nadir([1.0, 32.0, 63.0, 63.0], v) for v in views] == [False, True]
+    assert [poles_in_box([1.0, 32.0, 63.0, 63.0], v) for v in views] == [(False, False), (False, True)]
     kept = tile_detections(pano, LowerHalf(), views, keep_nadir=True)
     assert [d.tile.index for d in kept] == [0, 1]
     assert kept[1].box[0] == 0.0 and kept[1].box[2] == pano.shape[1]  # the whole width: no object is that
