@@ -75,20 +75,23 @@ def test_one_box_cut_by_an_occluder_does_not_move_the_camera_height():
 def test_the_room_term_rejects_a_candidate_through_a_wall():
     """A bed along a side wall, its candidates the true yaw and a quarter turn (a HOG side view): an appearance
     cost slightly for the turn wins on the box alone; the floor polygon then rules the turn out, since fitted to
-    the box it reaches 15 cm through the side wall."""
+    the box it reaches 15 cm through the side wall. The appearance cost is set against the box misfit at an edge
+    scale of 0.6 degrees (the default until session 21), which the test pins."""
+    edge = math.radians(0.6)
     cam = 1.5
     size, center = np.array([2.0, 1.6, 0.6]), np.array([3.0, 0.4, 0.3])
     box = world_box_to_pano(center, size, math.pi, W, H, camera_height=cam).extent
     cands = [[DetectedObject("bed", box, size, math.pi + t, model_id="bed-0") for t in (0.0, 0.5 * math.pi)]]
     room = np.array([[-3.0, -3.0], [4.05, -3.0], [4.05, 1.25], [-3.0, 1.25]])  # back and side walls 5 cm away
     app = [np.array([3.1, 0.0])]
-    assert select_models(cands, W, H, camera_height=cam, appearance=app).index.tolist() == [1]
-    res = select_models(cands, W, H, camera_height=cam, appearance=app, floor=room, floor_camera_height=cam)
+    fit = dict(edge_sigma=edge, camera_height=cam, appearance=app)
+    assert select_models(cands, W, H, **fit).index.tolist() == [1]
+    res = select_models(cands, W, H, **fit, floor=room, floor_camera_height=cam)
     assert res.index.tolist() == [0]
     # the floor is scaled with the camera height: the same room given at camera height 1 (units of it)
-    same = select_models(cands, W, H, camera_height=cam, appearance=app, floor=room / cam, floor_camera_height=1.0)
+    same = select_models(cands, W, H, **fit, floor=room / cam, floor_camera_height=1.0)
     assert np.allclose(same.cost, res.cost)
-    assert select_models(cands, W, H, camera_height=cam, appearance=app, floor=room, floor_camera_height=cam,
+    assert select_models(cands, W, H, **fit, floor=room, floor_camera_height=cam,
                          room_weight=0.0).index.tolist() == [1]
     # the term itself: 0 inside, rho(depth / sigma) outside, bounded by 1
     cost = room_misfit([[0.0, 0.0], [3.0, 0.4], [3.0, 0.4], [9.0, 0.0]], [0.0, 0.0, 0.5 * math.pi, 0.0],
