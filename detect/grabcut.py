@@ -279,8 +279,8 @@ def silhouette_box(pano: ArrayLike, det: Detection, *, grow: float = 0.1, gate_d
     """Move a tile detection's box edges onto the object's grab-cut silhouette where the two agree.
 
     Not in the paper (it uses grab-cut for the pose step's crops). The
-    builtin detector's box edges are off by about a degree (median absolute
-    deviation 0.7-1.0 deg per edge on the synthetic tuning rooms, even as the
+    builtin detector's box edges are off by most of a degree (median absolute
+    deviation 0.6-0.8 deg per edge on the synthetic tuning rooms, even as the
     median over the tiles that see the object), and the box fits that fix
     the room's scale (:mod:`layout.modelfit`) read those edges. Grab-cut
     follows the object's outline to a fraction of that, but now and then it
@@ -300,10 +300,11 @@ def silhouette_box(pano: ArrayLike, det: Detection, *, grow: float = 0.1, gate_d
        others stay the detector's.
 
     With the defaults the per-edge median absolute deviation falls to
-    0.28-0.64 deg and the share of edges within 0.5 deg of the true outline
-    rises from 0.30-0.38 to 0.44-0.66 (``benchmarks/eval_box_edges.py`` on
-    the 30 rooms of seed 7000; docs/EVALUATION.md, "Detector box edges").
-    Beds gain least (on seed 7000 their right edge stays as far off).
+    0.23-0.57 deg and the share of edges within 0.5 deg of the true outline
+    rises from 0.33-0.42 to 0.40-0.70 (``benchmarks/eval_box_edges.py`` on
+    the 30 rooms of seed 7000, detector run 7; docs/EVALUATION.md, "Detector
+    box edges"); 10-20 % of the edges stay more than 2 deg off.
+    Beds gain least (on seed 7000 their top and right edges get no better).
 
     ``grow`` and ``gate_deg`` were chosen on the synthetic tuning seeds 7000
     and 8000 (docs/EVALUATION.md, "Session 18"; partly with session

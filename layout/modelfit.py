@@ -73,10 +73,11 @@ __all__ = ["ModelChoice", "select_models", "candidate_yaws", "occluded_edges", "
 
 FloatArray = NDArray[np.float64]
 
-#: Scale of the box-edge misfit, radians (about 3.4 px at 1024 px width): the spread of the detector's box edges
-#: about the true outlines (median absolute deviation 0.74-1.03 deg, about 1.1-1.5 deg as a sigma; docs/EVALUATION.md,
-#: "Detector box edges"). 0.6 deg until session 21; 1.2 deg chose the camera height better on both tuning sets (mean
-#: error 0.040 -> 0.034 m, bed orientation 22.0 -> 14.0 deg; docs/EVALUATION.md, "Session 21").
+#: Scale of the box-edge misfit, radians (about 3.4 px at 1024 px width). The silhouette-refined edges the choice
+#: reads are off by a median absolute 0.23-0.57 deg per edge, but 10-20 % of them by more than 2 deg (seed 7000,
+#: docs/EVALUATION.md, "Detector box edges"); at 0.6 deg (until session 21) each such edge cost as much as a wrong
+#: model. 0.9 and 1.2 deg chose the camera height equally well on both tuning sets (mean error 0.040 -> 0.034 m),
+#: 1.2 deg with the better bed orientation (22.0 -> 14.0 deg; docs/EVALUATION.md, "Session 21").
 DEFAULT_EDGE_SIGMA: float = math.radians(1.2)
 #: Prior on the camera height (``select_models(height_prior=...)``): log-normal, median 1.5 m, sigma 0.45 (about
 #: 0.6-3.7 m at two sigma: it only decides where the boxes leave the height nearly free). Chosen on a tuning set
