@@ -27,8 +27,11 @@ pose CRF's E_o of each model at the estimated pose, minus the smallest of
 the object's), ``w_a`` its weight and ``P(H)`` a weak log-normal prior on
 the camera height (where people hold or mount a camera; it decides where
 the boxes leave the height nearly free: few objects, boxes cut by
-occluders, false detections); each object then takes its best model
-at that height. The grid of heights is refined twice around each of its
+occluders, false detections); each object then takes its best candidate
+at that height, by ``R_ij(H) + w_p A_ij`` with a stronger appearance weight
+``w_p`` (:data:`DEFAULT_PICK_APPEARANCE_WEIGHT`): the box sets the shared
+height well, but often cannot tell a bed seen from its foot from the same bed
+turned 90 degrees with another model, which the appearance can. The grid of heights is refined twice around each of its
 lowest local minima.
 
 Given the room's floor polygon (``select_models(floor=...)``, the room step's
@@ -65,10 +68,11 @@ from numpy.typing import ArrayLike, NDArray
 from panogeom.coords import pixel_to_lonlat
 
 from .polygon import distance_to_boundary, oriented_rectangles, points_in_polygon
-from .sampler import DetectedObject, _BoxEdges, _fit_edges, geman_mcclure, initialise_objects
+from .sampler import _QUARTER_ASPECT, DetectedObject, _BoxEdges, _fit_edges, geman_mcclure, initialise_objects
 
 __all__ = ["ModelChoice", "select_models", "candidate_yaws", "occluded_edges", "room_misfit", "DEFAULT_EDGE_SIGMA",
-           "DEFAULT_APPEARANCE_WEIGHT", "DEFAULT_HEIGHT_PRIOR", "DEFAULT_WALL_PRIOR", "DEFAULT_ROOM_WEIGHT",
+           "DEFAULT_APPEARANCE_WEIGHT", "DEFAULT_PICK_APPEARANCE_WEIGHT", "DEFAULT_HEIGHT_PRIOR", "DEFAULT_WALL_PRIOR",
+           "DEFAULT_ROOM_WEIGHT",
            "DEFAULT_ROOM_SIGMA"]
 
 FloatArray = NDArray[np.float64]
@@ -93,6 +97,12 @@ _KEEP = 8  # candidates per object fitted on the finer grids
 _BASINS = 3  # local minima of the first grid refined by the finer ones
 #: Weight of the caller's appearance cost against the box misfit (units of one edge's robust cost).
 DEFAULT_APPEARANCE_WEIGHT: float = 1.0
+#: Weight of the appearance cost when each object picks its candidate at the chosen camera height (the height
+#: itself is chosen with :data:`DEFAULT_APPEARANCE_WEIGHT`). The box often cannot tell a bed seen from its foot from
+#: the same bed turned 90 degrees with another model; the pose's appearance cost (HOG distance plus the orientation
+#: network's) can. Not for thin footprints (TVs), whose side view the box tells apart better than the appearance.
+#: Chosen on the tuning seeds 7000 and 8000 (docs/EVALUATION.md, "Session 22").
+DEFAULT_PICK_APPEARANCE_WEIGHT: float = 3.0
 #: Weight of the room term (a footprint through a wall; units of one edge's robust cost) and its depth scale, m.
 DEFAULT_ROOM_WEIGHT: float = 1.0
 DEFAULT_ROOM_SIGMA: float = 0.2
@@ -312,7 +322,8 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
                   floor: ArrayLike | None = None, floor_camera_height: float | None = None,
                   room_weight: float | None = None, room_sigma: float | None = None,
                   wall_ratio: float | None = None,
-                  wall_prior: tuple[float, float] | None = DEFAULT_WALL_PRIOR) -> ModelChoice:
+                  wall_prior: tuple[float, float] | None = DEFAULT_WALL_PRIOR,
+                  pick_appearance_weight: float | None = None) -> ModelChoice:
     """Choose each object's model by how well it fits its box at one shared camera height.
 
     Parameters
@@ -367,6 +378,15 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         ``(log(wall_ratio * H / median) / sigma)^2`` (default
         :data:`DEFAULT_WALL_PRIOR`); None or no ``wall_ratio``: none. Unused
         with a known ``camera_height``.
+    pick_appearance_weight : float, optional
+        Weight of the appearance cost when, at the chosen camera height,
+        each object picks its candidate (default
+        :data:`DEFAULT_PICK_APPEARANCE_WEIGHT`); the height itself is chosen
+        with ``appearance_weight``, and so are candidates with a thin
+        footprint (width under half the length, the sampler's rule for
+        quarter turns: TVs). Where the two weights differ, every candidate
+        is fitted again at that height (the finer grids fit only each
+        object's best few).
 
     Returns
     -------
@@ -437,7 +457,8 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
     yaw_flat = np.array([o.yaw for o in flat])
     size2_flat = np.array([o.size[:2] for o in flat], dtype=np.float64).reshape(-1, 2)
     use_room = floor is not None and room_weight > 0
-    a_flat = np.concatenate([a - a.min() for a in app]) * float(appearance_weight)
+    a_raw = np.concatenate([a - a.min() for a in app])
+    a_flat = a_raw * float(appearance_weight)
 
     def prior(hk: float) -> float:
         if camera_height is not None:
@@ -464,13 +485,14 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         return prof, costs
 
     everything = np.arange(len(flat))
+    all_edges = _BoxEdges(flat, w, h)
     if camera_height is not None:
         hs = np.array([float(camera_height)])
-        prof, costs = totals(hs, everything, _BoxEdges(flat, w, h))
+        prof, costs = totals(hs, everything, all_edges)
         best = 0
     else:
         coarse = np.geomspace(lo, hi, int(n_heights))
-        prof0, costs0 = totals(coarse, everything, _BoxEdges(flat, w, h))
+        prof0, costs0 = totals(coarse, everything, all_edges)
         hs, prof, costs = [coarse], [prof0], list(costs0)
         # the finer grids refine the best few local minima of the coarse profile (several objects with many
         # candidates make it multimodal), each fitting only each object's best few candidates there
@@ -496,7 +518,22 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         hs, prof = np.concatenate(hs), np.concatenate(prof)
         best = int(np.argmin(prof))
     cost = costs[best]
-    index = np.argmin(cost, axis=1).astype(np.int64)
+    pick_appearance_weight = (DEFAULT_PICK_APPEARANCE_WEIGHT if pick_appearance_weight is None
+                              else float(pick_appearance_weight))
+    if not (math.isfinite(pick_appearance_weight) and pick_appearance_weight >= 0):
+        raise ValueError(f"pick_appearance_weight: expected a finite weight >= 0, got {pick_appearance_weight!r}")
+    pick = cost
+    if pick_appearance_weight != appearance_weight:
+        # every candidate at the chosen height (the finer grids fitted only each object's best few)
+        full = totals(hs[best:best + 1], everything, all_edges)[1][0]
+        extra = np.zeros((n, m_max))
+        # thin footprints (TVs: width under half the length) keep the height's weight: the box tells their side
+        # view from their front, the appearance of a side view less so (tuning seeds 7000 / 8000, "Session 22")
+        thin = size2_flat.min(axis=1) < _QUARTER_ASPECT * size2_flat.max(axis=1)
+        w_pick = np.where(thin, appearance_weight, float(pick_appearance_weight))
+        extra[owner, slot] = a_raw * (w_pick - appearance_weight)
+        pick = full + extra
+    index = np.argmin(pick, axis=1).astype(np.int64)
     bottom = np.array([[0.0, c[0].bbox_pano[3]] for c in cands])
     below = pixel_to_lonlat(bottom, w, h)[:, 1] < 0  # a box bottom below the horizon constrains the height
     cam = float(hs[best]) if (camera_height is not None or below.any()) else float("nan")

@@ -57,9 +57,39 @@ def test_a_known_camera_height_and_an_appearance_cost():
     app[0][truth[0]] = 100.0
     res = select_models(cands, W, H, camera_height=1.5, appearance=app)
     assert res.index[0] != truth[0] and res.index[1:].tolist() == truth[1:]
-    # ... and a weight of zero ignores it
-    assert select_models(cands, W, H, camera_height=1.5, appearance=app,
-                         appearance_weight=0.0).index.tolist() == truth
+    # ... and weights of zero ignore it
+    assert select_models(cands, W, H, camera_height=1.5, appearance=app, appearance_weight=0.0,
+                         pick_appearance_weight=0.0).index.tolist() == truth
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_pick_weight_picks_the_candidates_but_leaves_the_height(seed):
+    """The camera height comes from the box misfit plus ``appearance_weight`` times the appearance; at that height
+    each object takes the candidate of least box misfit plus ``pick_appearance_weight`` times it, except thin
+    footprints (the TV), which keep ``appearance_weight``."""
+    truth, cands = scene(seed, 1.5)
+    rng = np.random.default_rng(seed)
+    app = [rng.uniform(0.0, 0.6, len(c)) for c in cands]
+    app[0][truth[0]] += 0.4  # the true bed a little worse in appearance
+    assert int(np.argmin(app[0])) != truth[0]  # so the pick weight has something to change
+    same = select_models(cands, W, H, appearance=app, pick_appearance_weight=1.0)
+    assert same.index.tolist() == truth  # the box decides at weight 1
+    heights = []
+    for pick in (0.0, 3.0, 50.0):
+        res = select_models(cands, W, H, appearance=app, pick_appearance_weight=pick)
+        heights.append(res.camera_height)
+        known = select_models(cands, W, H, appearance=app, camera_height=res.camera_height, appearance_weight=1.0,
+                              pick_appearance_weight=1.0)
+        rel = np.array([np.r_[a - a.min(), np.zeros(4 - len(a))] for a in app])  # (N, 4), chairs have 3
+        w = np.array([1.0 if c[0].cls == "tv" else pick for c in cands])[:, None]  # thin TVs keep weight 1
+        expect = np.argmin(known.cost - rel + w * rel, axis=1)  # box misfit (inf where no candidate) + pick
+        assert res.index.tolist() == expect.tolist()
+    assert heights[0] == heights[1] == heights[2] == same.camera_height
+    # a large pick weight hands every object but the thin TV to its best appearance, the camera height stays
+    assert res.index[:3].tolist() == [int(np.argmin(a)) for a in app[:3]]
+    assert res.index[3] == same.index[3] == truth[3]
+    with pytest.raises(ValueError, match="pick_appearance_weight"):
+        select_models(cands, W, H, pick_appearance_weight=-1.0)
 
 
 def test_one_box_cut_by_an_occluder_does_not_move_the_camera_height():
@@ -76,7 +106,8 @@ def test_the_room_term_rejects_a_candidate_through_a_wall():
     """A bed along a side wall, its candidates the true yaw and a quarter turn (a HOG side view): an appearance
     cost slightly for the turn wins on the box alone; the floor polygon then rules the turn out, since fitted to
     the box it reaches 15 cm through the side wall. The appearance cost is set against the box misfit at an edge
-    scale of 0.6 degrees (the default until session 21), which the test pins."""
+    scale of 0.6 degrees (the default until session 21) and an appearance weight of 1 for the pick (3 since session
+    22), which the test pins."""
     edge = math.radians(0.6)
     cam = 1.5
     size, center = np.array([2.0, 1.6, 0.6]), np.array([3.0, 0.4, 0.3])
@@ -84,7 +115,7 @@ def test_the_room_term_rejects_a_candidate_through_a_wall():
     cands = [[DetectedObject("bed", box, size, math.pi + t, model_id="bed-0") for t in (0.0, 0.5 * math.pi)]]
     room = np.array([[-3.0, -3.0], [4.05, -3.0], [4.05, 1.25], [-3.0, 1.25]])  # back and side walls 5 cm away
     app = [np.array([3.1, 0.0])]
-    fit = dict(edge_sigma=edge, camera_height=cam, appearance=app)
+    fit = dict(edge_sigma=edge, camera_height=cam, appearance=app, pick_appearance_weight=1.0)
     assert select_models(cands, W, H, **fit).index.tolist() == [1]
     res = select_models(cands, W, H, **fit, floor=room, floor_camera_height=cam)
     assert res.index.tolist() == [0]
