@@ -29,10 +29,11 @@ the camera height (where people hold or mount a camera; it decides where
 the boxes leave the height nearly free: few objects, boxes cut by
 occluders, false detections); each object then takes its best candidate
 at that height, by ``R_ij(H) + w_p A_ij`` with a stronger appearance weight
-``w_p`` (:data:`DEFAULT_PICK_APPEARANCE_WEIGHT`): the box sets the shared
-height well, but often cannot tell a bed seen from its foot from the same bed
-turned 90 degrees with another model, which the appearance can. The grid of heights is refined twice around each of its
-lowest local minima.
+``w_p`` (:data:`DEFAULT_PICK_APPEARANCE_WEIGHT`; thin footprints such as TVs
+keep ``w_a``): the box sets the shared height well, but often cannot tell a
+bed seen from its foot from the same bed turned 90 degrees with another
+model, which the appearance can. The grid of heights is refined twice
+around each of its lowest local minima.
 
 Given the room's floor polygon (``select_models(floor=...)``, the room step's
 polygon up to scale), each candidate also pays ``w_r rho(depth / sigma_r)``,
@@ -72,8 +73,7 @@ from .sampler import _QUARTER_ASPECT, DetectedObject, _BoxEdges, _fit_edges, gem
 
 __all__ = ["ModelChoice", "select_models", "candidate_yaws", "occluded_edges", "room_misfit", "DEFAULT_EDGE_SIGMA",
            "DEFAULT_APPEARANCE_WEIGHT", "DEFAULT_PICK_APPEARANCE_WEIGHT", "DEFAULT_HEIGHT_PRIOR", "DEFAULT_WALL_PRIOR",
-           "DEFAULT_ROOM_WEIGHT",
-           "DEFAULT_ROOM_SIGMA"]
+           "DEFAULT_ROOM_WEIGHT", "DEFAULT_ROOM_SIGMA"]
 
 FloatArray = NDArray[np.float64]
 
@@ -117,13 +117,14 @@ class ModelChoice:
     objects : tuple of DetectedObject
         One per input object: the chosen candidate.
     index : (N,) int
-        Index of the chosen candidate in each object's list.
+        Index of the chosen candidate in each object's list (picked at
+        ``camera_height`` with ``pick_appearance_weight``).
     camera_height : float
         The shared camera height of least total cost, metres; NaN when no
         object constrains it (no box bottom below the horizon).
     cost : (N, M_max) float
         Total cost of every candidate at ``camera_height`` (box misfit plus
-        weighted appearance); inf where an object has fewer candidates,
+        appearance weighted by ``appearance_weight``, the height's); inf where an object has fewer candidates,
         or for candidates left out of the finer grids (each object keeps
         its 8 best of the first grid near the local minimum refined).
     heights : (K,) float
@@ -416,6 +417,10 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         raise ValueError(f"edge_sigma: expected radians > 0, got {edge_sigma!r}")
     if not (math.isfinite(appearance_weight) and appearance_weight >= 0):
         raise ValueError(f"appearance_weight: expected a finite weight >= 0, got {appearance_weight!r}")
+    pick_appearance_weight = (DEFAULT_PICK_APPEARANCE_WEIGHT if pick_appearance_weight is None
+                              else float(pick_appearance_weight))
+    if not (math.isfinite(pick_appearance_weight) and pick_appearance_weight >= 0):
+        raise ValueError(f"pick_appearance_weight: expected a finite weight >= 0, got {pick_appearance_weight!r}")
     lo, hi = (float(v) for v in height_range)
     if not 0 < lo < hi:
         raise ValueError(f"height_range: expected 0 < low < high metres, got {height_range!r}")
@@ -518,10 +523,6 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         hs, prof = np.concatenate(hs), np.concatenate(prof)
         best = int(np.argmin(prof))
     cost = costs[best]
-    pick_appearance_weight = (DEFAULT_PICK_APPEARANCE_WEIGHT if pick_appearance_weight is None
-                              else float(pick_appearance_weight))
-    if not (math.isfinite(pick_appearance_weight) and pick_appearance_weight >= 0):
-        raise ValueError(f"pick_appearance_weight: expected a finite weight >= 0, got {pick_appearance_weight!r}")
     pick = cost
     if pick_appearance_weight != appearance_weight:
         # every candidate at the chosen height (the finer grids fitted only each object's best few)
