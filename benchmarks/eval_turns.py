@@ -8,8 +8,8 @@ Run::
 Each object of each room is followed by its id from ``scene_init.json`` (the sampler's initial hypothesis: the
 model choice's yaw, box fit at the shared camera height) to ``scene.json`` (the sampler's result). It is paired
 with a ground-truth object of its class by Hungarian assignment on the floor distance of its FINAL position
-(:func:`layout.objectmetrics.match_objects`' rule, gate 1.5 m). Per class, the paired objects are counted by
-whether their yaw is within ``--off`` degrees of the truth before and after the sampler: ``ok -> ok``,
+(:func:`layout.objectmetrics.match_pairs`, the pairing of Table 2, gate 1.5 m). Per class, the paired objects are
+counted by whether their yaw is within ``--off`` degrees of the truth before and after the sampler: ``ok -> ok``,
 ``ok -> off`` (the sampler turned a right yaw wrong), ``off -> ok`` (it repaired one) and ``off -> off``.
 Rotationally symmetric classes (plant) have no orientation and are left out.
 """
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from layout.objectmetrics import SYMMETRIC_CLASSES, TWO_FOLD_CLASSES, yaw_error
+from layout.objectmetrics import SYMMETRIC_CLASSES, TWO_FOLD_CLASSES, ObjectRecord, match_pairs, yaw_error
 
 CLASSES = ("bed", "chair", "tv")
 KINDS = ("ok -> ok", "ok -> off", "off -> ok", "off -> off")
@@ -30,24 +30,17 @@ KINDS = ("ok -> ok", "ok -> off", "off -> ok", "off -> off")
 
 def room_turns(init: dict, final: dict, gt: dict, off_deg: float, gate: float = 1.5) -> list[tuple[str, str]]:
     """``(class, kind)`` per paired object of one room (``kind`` one of :data:`KINDS`)."""
-    from scipy.optimize import linear_sum_assignment
-
     start = {o["id"]: o for o in init.get("objects", [])}
+    kept = [o for o in final.get("objects", []) if o["id"] in start]
+    truth = [ObjectRecord.from_json(o) for o in gt.get("objects", [])]
     out = []
-    for cls in sorted({o["class"] for o in gt.get("objects", [])} - SYMMETRIC_CLASSES):
-        G = [o for o in gt["objects"] if o["class"] == cls]
-        P = [o for o in final.get("objects", []) if o["class"] == cls and o["id"] in start]
-        if not P:
+    for cls, pairs in match_pairs([ObjectRecord.from_json(o) for o in kept], truth, gate).items():
+        if cls in SYMMETRIC_CLASSES:
             continue
-        d = np.linalg.norm(np.array([o["center"][:2] for o in G])[:, None]
-                           - np.array([o["center"][:2] for o in P])[None], axis=-1)
         fold = 2 if cls in TWO_FOLD_CLASSES else 1
-        for i, j in zip(*linear_sum_assignment(d)):
-            if d[i, j] > gate:
-                continue
-            truth = np.radians(G[i]["yaw_deg"])
-            before = float(np.degrees(yaw_error(np.radians(start[P[j]["id"]]["yaw_deg"]), truth, fold)))
-            after = float(np.degrees(yaw_error(np.radians(P[j]["yaw_deg"]), truth, fold)))
+        for i, j, _ in pairs:
+            before = float(np.degrees(yaw_error(ObjectRecord.from_json(start[kept[j]["id"]]).yaw, truth[i].yaw, fold)))
+            after = float(np.degrees(yaw_error(ObjectRecord.from_json(kept[j]).yaw, truth[i].yaw, fold)))
             out.append((cls, f"{'off' if before > off_deg else 'ok'} -> {'off' if after > off_deg else 'ok'}"))
     return out
 

@@ -69,7 +69,7 @@ from numpy.typing import ArrayLike, NDArray
 from panogeom.coords import pixel_to_lonlat
 
 from .polygon import distance_to_boundary, oriented_rectangles, points_in_polygon
-from .sampler import _QUARTER_ASPECT, DetectedObject, _BoxEdges, _fit_edges, geman_mcclure, initialise_objects
+from .sampler import DetectedObject, _BoxEdges, _fit_edges, geman_mcclure, initialise_objects, thin_footprints
 
 __all__ = ["ModelChoice", "select_models", "candidate_yaws", "occluded_edges", "room_misfit", "DEFAULT_EDGE_SIGMA",
            "DEFAULT_APPEARANCE_WEIGHT", "DEFAULT_PICK_APPEARANCE_WEIGHT", "DEFAULT_HEIGHT_PRIOR", "DEFAULT_WALL_PRIOR",
@@ -385,8 +385,9 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         :data:`DEFAULT_PICK_APPEARANCE_WEIGHT`); the height itself is chosen
         with ``appearance_weight``, and so are candidates with a thin
         footprint (width under half the length, the sampler's rule for
-        quarter turns: TVs). Where the two weights differ, every candidate
-        is fitted again at that height (the finer grids fit only each
+        quarter turns, :func:`layout.sampler.thin_footprints`: TVs). Where
+        the two weights differ and the height comes from a finer grid,
+        every candidate is fitted again at it (the finer grids fit only each
         object's best few).
 
     Returns
@@ -494,10 +495,11 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
     if camera_height is not None:
         hs = np.array([float(camera_height)])
         prof, costs = totals(hs, everything, all_edges)
-        best = 0
+        best, n_complete = 0, 1
     else:
         coarse = np.geomspace(lo, hi, int(n_heights))
         prof0, costs0 = totals(coarse, everything, all_edges)
+        n_complete = len(coarse)  # heights whose costs cover every candidate: the first grid's, listed first
         hs, prof, costs = [coarse], [prof0], list(costs0)
         # the finer grids refine the best few local minima of the coarse profile (several objects with many
         # candidates make it multimodal), each fitting only each object's best few candidates there
@@ -525,13 +527,13 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
     cost = costs[best]
     pick = cost
     if pick_appearance_weight != appearance_weight:
-        # every candidate at the chosen height (the finer grids fitted only each object's best few)
-        full = totals(hs[best:best + 1], everything, all_edges)[1][0]
+        # every candidate at the chosen height: the first grid (or a known height) fitted them all, the finer grids
+        # only each object's best few
+        full = cost if best < n_complete else totals(hs[best:best + 1], everything, all_edges)[1][0]
         extra = np.zeros((n, m_max))
         # thin footprints (TVs: width under half the length) keep the height's weight: the box tells their side
         # view from their front, the appearance of a side view less so (tuning seeds 7000 / 8000, "Session 22")
-        thin = size2_flat.min(axis=1) < _QUARTER_ASPECT * size2_flat.max(axis=1)
-        w_pick = np.where(thin, appearance_weight, float(pick_appearance_weight))
+        w_pick = np.where(thin_footprints(size2_flat), appearance_weight, pick_appearance_weight)
         extra[owner, slot] = a_raw * (w_pick - appearance_weight)
         pick = full + extra
     index = np.argmin(pick, axis=1).astype(np.int64)

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from panogeom.rotation import angle_difference
 
-__all__ = ["ObjectRecord", "ClassErrors", "match_objects", "yaw_error"]
+__all__ = ["ObjectRecord", "ClassErrors", "match_pairs", "match_objects", "yaw_error"]
 
 #: Classes without an orientation (CONVENTIONS.md).
 SYMMETRIC_CLASSES = frozenset({"plant"})
@@ -71,15 +71,50 @@ def yaw_error(a: float | NDArray, b: float | NDArray, fold: int = 1) -> NDArray[
     return angle_difference(a, b, fold)
 
 
-def match_objects(pred: Sequence[ObjectRecord], gt: Sequence[ObjectRecord], gate: float = 1.5
-                  ) -> dict[str, ClassErrors]:
-    """Per ground-truth class: Hungarian matching on floor distance, errors of the pairs within ``gate``.
+def match_pairs(pred: Sequence[ObjectRecord], gt: Sequence[ObjectRecord], gate: float = 1.5
+                ) -> dict[str, list[tuple[int, int, float]]]:
+    """Per ground-truth class: the Hungarian pairs on floor distance within ``gate``.
 
     Parameters
     ----------
     pred, gt : sequences of ObjectRecord
     gate : float
         Pairs farther apart than this (metres) do not count as a match.
+
+    Returns
+    -------
+    dict class -> list of ``(gt index, pred index, distance)``, indices into ``gt`` and ``pred`` (every class
+    present in ``gt``; an empty list where nothing matched)
+
+    Examples
+    --------
+    >>> g = [ObjectRecord("bed", (1.0, 0.0), 0.0), ObjectRecord("tv", (0.0, 3.0), 0.0)]
+    >>> p = [ObjectRecord("tv", (0.0, 9.0), 0.0), ObjectRecord("bed", (1.1, 0.0), 0.0)]
+    >>> {c: [(i, j, round(d, 3)) for i, j, d in v] for c, v in match_pairs(p, g).items()}
+    {'bed': [(0, 1, 0.1)], 'tv': []}
+    """
+    from scipy.optimize import linear_sum_assignment
+
+    if not (np.isfinite(gate) and gate > 0):
+        raise ValueError(f"gate: expected a positive distance, got {gate!r}")
+    out: dict[str, list[tuple[int, int, float]]] = {}
+    for cls in sorted({o.cls for o in gt}):
+        gi = [i for i, o in enumerate(gt) if o.cls == cls]
+        pj = [j for j, o in enumerate(pred) if o.cls == cls]
+        out[cls] = []
+        if not pj:
+            continue
+        gxy = np.array([gt[i].xy for i in gi], dtype=np.float64)
+        pxy = np.array([pred[j].xy for j in pj], dtype=np.float64)
+        d = np.linalg.norm(gxy[:, None] - pxy[None], axis=-1)
+        rows, cols = linear_sum_assignment(d)
+        out[cls] = [(gi[r], pj[c], float(d[r, c])) for r, c in zip(rows, cols) if d[r, c] <= gate]
+    return out
+
+
+def match_objects(pred: Sequence[ObjectRecord], gt: Sequence[ObjectRecord], gate: float = 1.5
+                  ) -> dict[str, ClassErrors]:
+    """Per ground-truth class: the errors of the pairs of :func:`match_pairs` (same arguments).
 
     Returns
     -------
@@ -93,26 +128,12 @@ def match_objects(pred: Sequence[ObjectRecord], gt: Sequence[ObjectRecord], gate
     >>> e.matched, round(float(e.position[0]), 3), round(float(np.rad2deg(e.orientation[0])), 3)
     (1, 0.1, 5.0)
     """
-    from scipy.optimize import linear_sum_assignment
-
-    if not (np.isfinite(gate) and gate > 0):
-        raise ValueError(f"gate: expected a positive distance, got {gate!r}")
     out: dict[str, ClassErrors] = {}
-    for cls in sorted({o.cls for o in gt}):
-        G = [o for o in gt if o.cls == cls]
-        P = [o for o in pred if o.cls == cls]
-        pos: list[float] = []
-        ori: list[float] = []
-        if P:
-            gxy = np.array([o.xy for o in G], dtype=np.float64)
-            pxy = np.array([o.xy for o in P], dtype=np.float64)
-            d = np.linalg.norm(gxy[:, None] - pxy[None], axis=-1)
-            rows, cols = linear_sum_assignment(d)
-            for i, j in zip(rows, cols):
-                if d[i, j] > gate:
-                    continue
-                pos.append(float(d[i, j]))
-                if cls not in SYMMETRIC_CLASSES and G[i].yaw is not None and P[j].yaw is not None:
-                    ori.append(float(yaw_error(P[j].yaw, G[i].yaw, 2 if cls in TWO_FOLD_CLASSES else 1)))
-        out[cls] = ClassErrors(len(G), len(P), len(pos), np.array(pos), np.array(ori))
+    for cls, pairs in match_pairs(pred, gt, gate).items():
+        fold = 2 if cls in TWO_FOLD_CLASSES else 1
+        pos = [d for _, _, d in pairs]
+        ori = [float(yaw_error(pred[j].yaw, gt[i].yaw, fold)) for i, j, _ in pairs
+               if cls not in SYMMETRIC_CLASSES and gt[i].yaw is not None and pred[j].yaw is not None]
+        n_pred = sum(1 for o in pred if o.cls == cls)
+        out[cls] = ClassErrors(sum(1 for o in gt if o.cls == cls), n_pred, len(pos), np.array(pos), np.array(ori))
     return out

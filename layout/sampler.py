@@ -120,6 +120,7 @@ __all__ = [
     "fit_boxes",
     "box_scale",
     "hull_outline",
+    "thin_footprints",
     "SamplerConfig",
     "SceneEnergies",
     "PosteriorResult",
@@ -1087,8 +1088,7 @@ class _Problem:
         self.box_mid = 0.5 * (left + right)
         self.box_half = np.where(right - left < np.pi, 0.5 * (right - left), np.inf)  # no limit for huge boxes
         # objects the quarter turns may turn: asymmetric, not thin
-        self.turnable = np.flatnonzero((self.weights > 0)
-                                       & (self.size2.min(axis=1) >= _QUARTER_ASPECT * self.size2.max(axis=1)))
+        self.turnable = np.flatnonzero((self.weights > 0) & ~thin_footprints(self.size2))
         # the box edges, for the box term and the quarter turns' refits
         need_edges = self.n and (cfg.box_weight > 0 or cfg.quarter_moves)
         self.edges = _BoxEdges(objects, image_width, image_height) if need_edges else None
@@ -1457,6 +1457,20 @@ _QUARTER_PULL = (1.0, 0.97, 0.94)  # radial factors of the quarter-turn proposal
 #: sliver no pose estimate mistakes for its front (with quarter turns for TVs too, 10 % of the TVs of the tuning
 #: rooms ended 45 degrees or more off, 5 % without).
 _QUARTER_ASPECT = 0.5
+
+
+def thin_footprints(size2: ArrayLike) -> NDArray[np.bool_]:
+    """``(N,)`` bool: footprints ``(N, 2)`` (length, width, metres) whose width is under half the length (TVs).
+
+    Their side view is a sliver: the sampler never turns them by 90 degrees
+    (``SamplerConfig.quarter_moves``) and :func:`layout.modelfit.select_models`
+    picks their yaw with the height's appearance weight.
+
+    >>> thin_footprints([[0.3, 1.4], [2.1, 1.6]]).tolist()
+    [True, False]
+    """
+    s = np.asarray(size2, dtype=np.float64).reshape(-1, 2)
+    return s.min(axis=1) < _QUARTER_ASPECT * s.max(axis=1)
 
 
 def _improved_epoch(prob: _Problem, st: _State, shrink: float, g: np.random.Generator) -> tuple[int, int]:
