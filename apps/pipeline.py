@@ -30,9 +30,10 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
 7. model choice by box fit (not in the paper, ``RunOptions.model_choice``):
    each object's model among its class's and its wall-aligned yaw, with the
    camera height they share, from how well they fit the detection boxes
-   (:func:`layout.modelfit.select_models`; box edges cut by a nearer
-   object or a tile border left out, tile boxes as great-circle edges, each
-   edge the median over the tiles that see the object whole), from how far
+   (:func:`layout.modelfit.select_models`; a box edge a nearer object or
+   a tile border may have cut holds the object only weakly beyond the box,
+   tile boxes as great-circle edges, each edge the median over the tiles
+   that see the object whole), from how far
    each candidate's footprint would reach through the walls of the room of
    step 5, and from the wall height it gives that room (a prior on ceilings)
 8. initial objects -> MAP sampling of scale, positions and yaws under E_s,
@@ -471,15 +472,16 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
 
     lib = builtin_library()
     objects, eo, alternatives = [], [], []
-    # box edges cut by a nearer object in front are left out of the box fits
+    # box edges a nearer object in front may have cut: in the box fits the object may reach beyond them (a weak
+    # pull) but not stop short of them (DetectedObject.cut_edges)
     cut = occluded_edges(np.array([d.box for d in dets]), W) if dets else np.zeros((0, 4), bool)
     for d, p, c, sil in zip(dets, poses, cut, silhouettes):
         if p is None:
             continue
         model, yaw, e_o, est, ray = p
 
-        # a tile detection's edges are great circles (planes through the camera); one at the tile border is not
-        # the object's own edge; an object other tiles also see whole brings their edges too (each edge's fit
+        # a tile detection's edges are great circles (planes through the camera); one at the tile border may not
+        # be the object's own edge (cut as well); an object other tiles also see whole brings their edges too (each edge's fit
         # takes the median over the views); edges the grab-cut silhouette confirms are the silhouette's
         planes = (sil if sil is not None else d).edge_planes()
         if d.tile is not None:
@@ -488,7 +490,7 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
         def as_object(m, d=d, yaw=yaw, c=c, planes=planes, points=400) -> DetectedObject:
             return DetectedObject(d.label, d.box, m.size, 0.0 if yaw is None else yaw, model_id=m.id,
                                   score=float(d.score), symmetric=yaw is None, outline=_outline(m, points),
-                                  edge_weights=np.where(c, 0.0, 1.0), edge_planes=planes)
+                                  cut_edges=c, edge_planes=planes)
 
         objects.append(as_object(model))
         eo.append(e_o)
