@@ -481,8 +481,9 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
         model, yaw, e_o, est, ray = p
 
         # a tile detection's edges are great circles (planes through the camera); one at the tile border may not
-        # be the object's own edge (cut as well); an object other tiles also see whole brings their edges too (each edge's fit
-        # takes the median over the views); edges the grab-cut silhouette confirms are the silhouette's
+        # be the object's own edge (cut as well); an object other tiles also see whole brings their edges too
+        # (each edge's fit takes the median over the views); edges the grab-cut silhouette confirms are the
+        # silhouette's
         planes = (sil if sil is not None else d).edge_planes()
         if d.tile is not None:
             c = c | d.tile.border_edges()
