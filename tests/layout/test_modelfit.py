@@ -300,3 +300,33 @@ def test_edge_residual_of_several_views_is_the_median_of_theirs():
     assert np.allclose(both, [np.median(each, axis=0), each[0]], atol=1e-9)
     with pytest.raises(ValueError, match="edge_planes"):
         DetectedObject("bed", box, size, yaw, outline=outline, edge_planes=planes[:, :3])
+
+
+def test_a_cut_plane_edge_pulls_weakly_only_where_the_object_reaches_beyond_it():
+    """Edge planes and ``cut_edges``: a tile box 3 px too wide (the object inside every edge, residuals > 0) keeps
+    its full residuals when its edges are cut; one 3 px too narrow (the object beyond every edge, residuals < 0)
+    has them scaled by CUT_EDGE_BEYOND."""
+    from detect.detection import TileBox
+    from layout.sampler import CUT_EDGE_BEYOND, _BoxEdges
+    from panogeom.perspective import PinholeView
+
+    size, yaw, cam, center, outline, world = _bed_outline()
+    view = PinholeView(yaw=math.atan2(center[1], center[0]) + 0.2, pitch=-0.4, roll=0.0, fov=math.radians(100),
+                       width=400, height=400)
+    px, ok = view.ray_to_pixel(world)
+    assert ok.all()
+    tight = np.array([px[:, 0].min(), px[:, 1].min(), px[:, 0].max(), px[:, 1].max()])
+    for grow, sign, factor in ((3.0, 1.0, 1.0), (-3.0, -1.0, CUT_EDGE_BEYOND)):
+        planes = TileBox(view, tight + grow * np.array([-1.0, -1.0, 1.0, 1.0])).edge_planes()
+
+        def residual(cut):
+            obj = DetectedObject("bed", [0.0, 200.0, 100.0, 300.0], size, yaw, outline=outline, edge_planes=planes,
+                                 cut_edges=cut)
+            return _BoxEdges([obj], W, H).residual(center[None, None, :2], np.array([[yaw]]),
+                                                   np.array([[cam]]))[0, 0]
+
+        whole = residual(None)
+        assert np.all(sign * whole > 1e-4)
+        assert np.allclose(residual(np.ones(4, bool)), factor * whole, atol=1e-12)
+        mixed = residual(np.array([True, False, False, True]))
+        assert np.allclose(mixed, whole * [factor, 1.0, 1.0, factor], atol=1e-12)
