@@ -8,7 +8,8 @@ Run::
     .venv/bin/python benchmarks/eval_orientnet.py vs-hog out/tune7000 WEIGHTS.pt --weights 0 0.05 0.1 0.2 0.5
 
 ``held-out``: every object of rooms ``[first, last)`` of a synthetic set (the crops and labels of
-:func:`posecrf.train_orientation.crops_from_rooms`, exact gt boxes), scored per class for each weights file:
+:func:`posecrf.train_orientation.crops_from_rooms`, exact gt boxes), scored per class for each weights file, on
+the crops alone and averaged with their mirrors (:func:`posecrf.orientnet.mirror_average`, what the pipeline uses):
 the share whose most likely bin is within 45 deg of the truth (:func:`posecrf.train_orientation.score`).
 
 ``vs-hog``: every object with at least 300 visible pixels of a class with a network head, cropped at its gt box
@@ -36,17 +37,21 @@ def _err_deg(a, b) -> np.ndarray:
 
 
 def held_out(rooms_dir: str, first: int, last: int, weights: list[str]) -> None:
-    from posecrf.orientnet import head_probabilities, load_orientation_net
+    from posecrf.orientnet import head_probabilities, load_orientation_net, mirror_average
     from posecrf.train_orientation import crops_from_rooms, score
 
     rooms = sorted(p for p in Path(rooms_dir).glob("room-*") if (p / "gt.json").is_file())[first:last]
     x, c, y = crops_from_rooms(rooms, 1, 0.0, 300, np.random.default_rng(0))
-    print(f"{len(x)} crops of {len(rooms)} rooms ({rooms_dir}, rooms {first}-{last - 1}); within 45 deg:\n")
+    print(f"{len(x)} crops of {len(rooms)} rooms ({rooms_dir}, rooms {first}-{first + len(rooms) - 1}); within 45 deg:\n")
     print("| weights | " + " | ".join(n for n in _classes()) + " |")
     print("|---|" + "---:|" * len(_classes()))
-    for w in weights:
-        s = score(head_probabilities(load_orientation_net(w).module, x, c), y, c)
-        print(f"| {w} | " + " | ".join(f"{100 * s[n]['within_45_deg']:.0f} % ({s[n]['crops']})" if n in s else ""
+    for w, mirror in ((w, m) for w in weights for m in (False, True)):
+        module = load_orientation_net(w).module
+        p = head_probabilities(module, x, c)
+        if mirror:  # the pipeline's test-time mirror (OrientationNet.probabilities)
+            p = mirror_average(p, head_probabilities(module, np.ascontiguousarray(x[..., ::-1]), c))
+        s = score(p, y, c)
+        print(f"| {w}{', mirror averaged' if mirror else ''} | " + " | ".join(f"{100 * s[n]['within_45_deg']:.0f} % ({s[n]['crops']})" if n in s else ""
                                         for n in _classes()) + " |")
 
 

@@ -18,6 +18,7 @@ from posecrf.orientnet import (
     build_network,
     head_probabilities,
     load_orientation_net,
+    mirror_average,
     orientation_costs,
     prepare_crops,
     save_weights,
@@ -118,7 +119,29 @@ def test_save_and_load_round_trip(tmp_path):
     crop = np.random.default_rng(1).integers(0, 255, (50, 70, 3), dtype=np.uint8)
     with torch.no_grad():
         want = torch.softmax(net(torch.from_numpy(prepare_crops([crop])))[0, 1].double(), 0).numpy()
-    assert np.allclose(loaded.probabilities([crop], ["chair"])[0], want)
+    assert np.allclose(loaded.probabilities([crop], ["chair"], mirror=False)[0], want)
+    with torch.no_grad():
+        flipped = torch.from_numpy(np.ascontiguousarray(prepare_crops([crop])[..., ::-1]))
+        mirrored = torch.softmax(net(flipped)[0, 1].double(), 0).numpy()
+    assert np.allclose(loaded.probabilities([crop], ["chair"])[0], mirror_average(want[None], mirrored[None])[0])
+
+
+def test_the_mirror_average_sees_a_mirrored_crop_at_the_mirrored_yaw(tmp_path):
+    """The test-time mirror makes the network equivariant: a crop mirrored left-right gets the yaws mirrored."""
+    import torch
+
+    torch.manual_seed(0)
+    net = build_network()
+    net.eval()
+    save_weights(net, ORIENT_CLASSES, tmp_path / "w.pt")
+    loaded = load_orientation_net(tmp_path / "w.pt")
+    crop = np.random.default_rng(2).integers(0, 255, (64, 64, 3), dtype=np.uint8)  # square: no padding to shift
+    p = loaded.probabilities([crop], ["bed"])[0]
+    q = loaded.probabilities([np.ascontiguousarray(crop[:, ::-1])], ["bed"])[0]
+    k = np.arange(N_BINS)
+    assert np.allclose(q, p[(-k) % N_BINS])
+    assert not np.allclose(q, p)  # a random network is not symmetric by itself
+    assert np.isclose(p.sum(), 1.0)
 
 
 def test_head_probabilities_batches_and_checks_heads():
