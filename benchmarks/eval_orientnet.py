@@ -37,22 +37,21 @@ def _err_deg(a, b) -> np.ndarray:
 
 
 def held_out(rooms_dir: str, first: int, last: int, weights: list[str]) -> None:
-    from posecrf.orientnet import head_probabilities, load_orientation_net, mirror_average
+    from posecrf.orientnet import head_probabilities, load_orientation_net
     from posecrf.train_orientation import crops_from_rooms, score
 
     rooms = sorted(p for p in Path(rooms_dir).glob("room-*") if (p / "gt.json").is_file())[first:last]
     x, c, y = crops_from_rooms(rooms, 1, 0.0, 300, np.random.default_rng(0))
-    print(f"{len(x)} crops of {len(rooms)} rooms ({rooms_dir}, rooms {first}-{first + len(rooms) - 1}); within 45 deg:\n")
+    print(f"{len(x)} crops of {len(rooms)} rooms ({rooms_dir}, rooms {first}-{first + len(rooms) - 1}); "
+          "within 45 deg:\n")
     print("| weights | " + " | ".join(n for n in _classes()) + " |")
     print("|---|" + "---:|" * len(_classes()))
     for w, mirror in ((w, m) for w in weights for m in (False, True)):
-        module = load_orientation_net(w).module
-        p = head_probabilities(module, x, c)
-        if mirror:  # the pipeline's test-time mirror (OrientationNet.probabilities)
-            p = mirror_average(p, head_probabilities(module, np.ascontiguousarray(x[..., ::-1]), c))
-        s = score(p, y, c)
-        print(f"| {w}{', mirror averaged' if mirror else ''} | " + " | ".join(f"{100 * s[n]['within_45_deg']:.0f} % ({s[n]['crops']})" if n in s else ""
-                                        for n in _classes()) + " |")
+        # mirror: the pipeline's test-time mirror (OrientationNet.probabilities)
+        s = score(head_probabilities(load_orientation_net(w).module, x, c, mirror=mirror), y, c)
+        print(f"| {w}{', mirror averaged' if mirror else ''} | "
+              + " | ".join(f"{100 * s[n]['within_45_deg']:.0f} % ({s[n]['crops']})" if n in s else ""
+                           for n in _classes()) + " |")
 
 
 def _classes() -> tuple[str, ...]:

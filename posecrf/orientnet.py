@@ -172,20 +172,17 @@ class OrientationNet:
             raise ValueError(f"classes: no orientation head for {unknown}; known: {list(self.classes)}")
         if not crops:
             return np.zeros((0, self.n_bins))
-        x = prepare_crops(crops)
-        heads = [self.classes.index(c) for c in classes]
-        p = head_probabilities(self.module, x, heads)
-        if not mirror:
-            return p
-        return mirror_average(p, head_probabilities(self.module, np.ascontiguousarray(x[..., ::-1]), heads))
+        return head_probabilities(self.module, prepare_crops(crops), [self.classes.index(c) for c in classes],
+                                  mirror=mirror)
 
 
 def head_probabilities(module: Any, x: NDArray[np.float32], heads: ArrayLike,
-                       batch: int = 512) -> NDArray[np.float64]:
+                       batch: int = 512, mirror: bool = False) -> NDArray[np.float64]:
     """Softmax of each prepared crop's logits under head ``heads[i]``: (N, n_bins), rows sum to 1.
 
     ``module``: the network (:func:`build_network`, or :attr:`OrientationNet.module`); ``x``: (N, 3, S, S) float32
     from :func:`prepare_crops`; ``heads``: (N,) int head indices. Evaluated without gradients, ``batch`` at a time.
+    With ``mirror``, averaged with the distributions of the crops mirrored left-right (:func:`mirror_average`).
     """
     torch = _torch()
     h = np.asarray(heads, dtype=np.int64).reshape(-1)
@@ -197,7 +194,10 @@ def head_probabilities(module: Any, x: NDArray[np.float32], heads: ArrayLike,
             logits = module(torch.from_numpy(np.ascontiguousarray(x[s:s + batch])))
             sel = logits[torch.arange(len(logits)), torch.from_numpy(h[s:s + batch])]
             out.append(torch.softmax(sel.double(), dim=1).numpy())
-    return np.concatenate(out) if out else np.zeros((0, N_BINS))
+    p = np.concatenate(out) if out else np.zeros((0, N_BINS))
+    if not mirror or not len(p):
+        return p
+    return mirror_average(p, head_probabilities(module, np.ascontiguousarray(x[..., ::-1]), h, batch))
 
 
 def mirror_average(probs: ArrayLike, mirrored: ArrayLike) -> NDArray[np.float64]:

@@ -108,14 +108,21 @@ def test_bad_weight_files_name_the_file(tmp_path):
         load_orientation_net(bad)
 
 
-def test_save_and_load_round_trip(tmp_path):
+def _saved_random_network(path: Path):
+    """A randomly initialised network (seed 0), saved to ``path`` and loaded back: (module, OrientationNet)."""
     import torch
 
     torch.manual_seed(0)
     net = build_network()
     net.eval()
-    save_weights(net, ORIENT_CLASSES, tmp_path / "w.pt")
-    loaded = load_orientation_net(tmp_path / "w.pt")
+    save_weights(net, ORIENT_CLASSES, path)
+    return net, load_orientation_net(path)
+
+
+def test_save_and_load_round_trip(tmp_path):
+    import torch
+
+    net, loaded = _saved_random_network(tmp_path / "w.pt")
     crop = np.random.default_rng(1).integers(0, 255, (50, 70, 3), dtype=np.uint8)
     with torch.no_grad():
         want = torch.softmax(net(torch.from_numpy(prepare_crops([crop])))[0, 1].double(), 0).numpy()
@@ -128,13 +135,7 @@ def test_save_and_load_round_trip(tmp_path):
 
 def test_the_mirror_average_sees_a_mirrored_crop_at_the_mirrored_yaw(tmp_path):
     """The test-time mirror makes the network equivariant: a crop mirrored left-right gets the yaws mirrored."""
-    import torch
-
-    torch.manual_seed(0)
-    net = build_network()
-    net.eval()
-    save_weights(net, ORIENT_CLASSES, tmp_path / "w.pt")
-    loaded = load_orientation_net(tmp_path / "w.pt")
+    _, loaded = _saved_random_network(tmp_path / "w.pt")
     crop = np.random.default_rng(2).integers(0, 255, (64, 64, 3), dtype=np.uint8)  # square: no padding to shift
     p = loaded.probabilities([crop], ["bed"])[0]
     q = loaded.probabilities([np.ascontiguousarray(crop[:, ::-1])], ["bed"])[0]
