@@ -29,8 +29,9 @@ the camera height (where people hold or mount a camera; it decides where
 the boxes leave the height nearly free: few objects, boxes cut by
 occluders, false detections); each object then takes its best candidate
 at that height, by ``R_ij(H) + w_p A_ij`` with a stronger appearance weight
-``w_p`` (:data:`DEFAULT_PICK_APPEARANCE_WEIGHT`; thin footprints such as TVs
-keep ``w_a``): the box sets the shared height well, but often cannot tell a
+``w_p`` (:data:`DEFAULT_PICK_APPEARANCE_WEIGHT`; objects whose candidates are
+mostly thin footprints, such as TVs, keep ``w_a``; one weight for all the
+candidates of an object): the box sets the shared height well, but often cannot tell a
 bed seen from its foot from the same bed turned 90 degrees with another
 model, which the appearance can. The grid of heights is refined twice
 around each of its lowest local minima.
@@ -100,7 +101,8 @@ DEFAULT_APPEARANCE_WEIGHT: float = 1.0
 #: Weight of the appearance cost when each object picks its candidate at the chosen camera height (the height
 #: itself is chosen with :data:`DEFAULT_APPEARANCE_WEIGHT`). The box often cannot tell a bed seen from its foot from
 #: the same bed turned 90 degrees with another model; the pose's appearance cost (HOG distance plus the orientation
-#: network's) can. Not for thin footprints (TVs), whose side view the box tells apart better than the appearance.
+#: network's) can. Not for objects whose candidates are mostly thin footprints (TVs), whose side view the box tells
+#: apart better than the appearance.
 #: Chosen on the tuning seeds 7000 and 8000 (docs/EVALUATION.md, "Session 22").
 DEFAULT_PICK_APPEARANCE_WEIGHT: float = 3.0
 #: Weight of the room term (a footprint through a wall; units of one edge's robust cost) and its depth scale, m.
@@ -383,9 +385,11 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         Weight of the appearance cost when, at the chosen camera height,
         each object picks its candidate (default
         :data:`DEFAULT_PICK_APPEARANCE_WEIGHT`); the height itself is chosen
-        with ``appearance_weight``, and so are candidates with a thin
-        footprint (width under half the length, the sampler's rule for
-        quarter turns, :func:`layout.sampler.thin_footprints`: TVs). Where
+        with ``appearance_weight``, and so are the objects more than half
+        of whose candidates have a thin footprint (width under half the
+        length, the sampler's rule for quarter turns,
+        :func:`layout.sampler.thin_footprints`: TVs; the weight is the same
+        for all the candidates of an object). Where
         the two weights differ and the height comes from a finer grid,
         every candidate is fitted again at it (the finer grids fit only each
         object's best few).
@@ -531,9 +535,13 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         # only each object's best few
         full = cost if best < n_complete else totals(hs[best:best + 1], everything, all_edges)[1][0]
         extra = np.zeros((n, m_max))
-        # thin footprints (TVs: width under half the length) keep the height's weight: the box tells their side
-        # view from their front, the appearance of a side view less so (tuning seeds 7000 / 8000, "Session 22")
-        w_pick = np.where(thin_footprints(size2_flat), appearance_weight, pick_appearance_weight)
+        # objects whose candidates are mostly thin footprints (TVs: width under half the length) keep the height's
+        # weight: the box tells their side view from their front, the appearance of a side view less so (tuning
+        # seeds 7000 / 8000, "Session 22"). One weight per object: a narrow single bed among double beds paid the
+        # lighter weight alone and was picked for beds of other models ("Session 25")
+        n_thin = np.bincount(owner, weights=thin_footprints(size2_flat), minlength=n)
+        thin = n_thin > 0.5 * np.bincount(owner, minlength=n)
+        w_pick = np.where(thin[owner], appearance_weight, pick_appearance_weight)
         extra[owner, slot] = a_raw * (w_pick - appearance_weight)
         pick = full + extra
     index = np.argmin(pick, axis=1).astype(np.int64)
