@@ -1507,7 +1507,8 @@ def thin_footprints(size2: ArrayLike) -> NDArray[np.bool_]:
 
     Their side view is a sliver: the sampler never turns them by 90 degrees
     (``SamplerConfig.quarter_moves``) and :func:`layout.modelfit.select_models`
-    picks their yaw with the height's appearance weight.
+    picks the candidate of an object most of whose candidates are thin with
+    the height's appearance weight.
 
     >>> thin_footprints([[0.3, 1.4], [2.1, 1.6]]).tolist()
     [True, False]
