@@ -67,8 +67,8 @@ def table(variants: dict[str, dict[str, list[tuple[bool, float]]]]) -> list[str]
                 continue
             ok = np.array([a for a, _ in v])
             err = np.array([d for _, d in v]) * 100.0
-            mean = lambda m: f"{err[m].mean():.1f}" if m.any() else "n/a"  # noqa: E731
-            cells += [str(len(v)), f"{100.0 * ok.mean():.0f} %", f"{mean(ok)} / {mean(~ok)}"]
+            true_err, other_err = (f"{err[m].mean():.1f}" if m.any() else "n/a" for m in (ok, ~ok))
+            cells += [str(len(v)), f"{100.0 * ok.mean():.0f} %", f"{true_err} / {other_err}"]
         lines.append(f"| {cls} | " + " | ".join(cells) + " |")
     return lines
 

@@ -188,6 +188,9 @@ def head_probabilities(module: Any, x: NDArray[np.float32], heads: ArrayLike,
     h = np.asarray(heads, dtype=np.int64).reshape(-1)
     if len(h) != len(x):
         raise ValueError(f"heads: expected one per crop ({len(x)}), got {len(h)}")
+    n = len(x)
+    if mirror:  # the crops and their mirrors in the same forward passes
+        x, h = np.concatenate([x, x[..., ::-1]]), np.concatenate([h, h])
     out = []
     with torch.no_grad():
         for s in range(0, len(x), batch):
@@ -195,9 +198,7 @@ def head_probabilities(module: Any, x: NDArray[np.float32], heads: ArrayLike,
             sel = logits[torch.arange(len(logits)), torch.from_numpy(h[s:s + batch])]
             out.append(torch.softmax(sel.double(), dim=1).numpy())
     p = np.concatenate(out) if out else np.zeros((0, N_BINS))
-    if not mirror or not len(p):
-        return p
-    return mirror_average(p, head_probabilities(module, np.ascontiguousarray(x[..., ::-1]), h, batch))
+    return mirror_average(p[:n], p[n:]) if mirror else p
 
 
 def mirror_average(probs: ArrayLike, mirrored: ArrayLike) -> NDArray[np.float64]:
