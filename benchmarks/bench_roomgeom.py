@@ -397,6 +397,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--update-docs", action="store_true", help="write the sections into docs/BENCHMARKS.md and "
                                                                "docs/EVALUATION.md")
     args = ap.parse_args(argv)
+    if args.rooms < 1 or not 1 <= args.pc_rooms <= args.rooms:
+        ap.error(f"expected --rooms >= 1 and 1 <= --pc-rooms <= --rooms, got {args.rooms} and {args.pc_rooms}")
     speed = speed_section()
     print(speed)
     if args.update_docs:
