@@ -128,6 +128,10 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ceiling", choices=["network", "labels"], default="network",
                    help="ceiling-wall boundary the room step reads: the boundary network's (unless it is far from "
                         "the labels' in most columns), or the surface labels'")
+    p.add_argument("--walls", choices=["edges", "labels"], default="edges",
+                   help="the room as the room step put it from the labels, or each wall moved onto the image's "
+                        "ceiling-wall crease where it shows a clear one (within 25 %% of its distance), the ceiling "
+                        "height onto the walls that show both creases")
     p.add_argument("--seed", type=int, default=0, help="seed of the sampler")
     p.add_argument("--size", type=int, default=1024, help="working width in pixels (larger inputs are downscaled)")
     p.add_argument("--no-objects", action="store_true", help="layout only: no detection, pose or sampling of objects")

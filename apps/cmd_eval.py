@@ -120,7 +120,7 @@ def run(args) -> int:
         opts = {"camera_height": o.camera_height, "detector": o.detector, "samples": o.samples, "seed": o.seed,
                 "objects": o.objects, "sampler_mode": o.sampler_mode,
                 "model_choice": o.model_choice, "crop": o.crop, "orientation": o.orientation,
-                "box_edges": o.box_edges, "ceiling": o.ceiling, "size": args.size, "gt_scale": bool(getattr(args, "gt_scale", False))}
+                "box_edges": o.box_edges, "ceiling": o.ceiling, "walls": o.walls, "size": args.size, "gt_scale": bool(getattr(args, "gt_scale", False))}
         if opts["gt_scale"] and o.camera_height is not None:
             raise UserError("--gt-scale and --camera-height both fix the scale: give one")
         jobs = max(1, min(args.jobs or os.cpu_count() or 1, len(rooms)))

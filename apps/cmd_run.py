@@ -26,7 +26,8 @@ def options_from_args(args):
     return RunOptions(camera_height=args.camera_height, detector=args.detector, samples=args.samples,
                       seed=args.seed, objects=not args.no_objects, sampler_mode=args.sampler,
                       model_choice=args.models, crop=args.crop,
-                      orientation=args.orientation, box_edges=args.box_edges, ceiling=args.ceiling)
+                      orientation=args.orientation, box_edges=args.box_edges, ceiling=args.ceiling,
+                      walls=args.walls)
 
 
 def write_outputs(result, out: Path, image_name: str) -> dict[str, Path]:

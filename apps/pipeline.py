@@ -68,6 +68,8 @@ ORIENTATION_MODES = ("net", "hog")
 BOX_EDGE_MODES = ("silhouette", "detector")
 #: ``RunOptions.ceiling``: where the room step reads the ceiling-wall boundary.
 CEILING_MODES = ("labels", "network")
+#: ``RunOptions.walls``: walls where the labels put them, or moved onto the image's ceiling-wall edges.
+WALL_MODES = ("edges", "labels")
 #: Weight of the orientation network's cost ``-log(n_bins p)`` added to E_o (``RunOptions.orientation="net"``);
 #: chosen on the tuning seeds 7000 and 8000 among 0.1 and 0.3 (docs/EVALUATION.md, session 10). Over the yaws of
 #: one crop the cost spans about 9, E_o (HOG distance) about 0.3 (``benchmarks/eval_orientnet.py vs-hog``).
@@ -114,6 +116,12 @@ class RunOptions:
         (:mod:`layout.surfaces.boundary_net`, ``estimate_surfaces(ceiling_net=True)``), unless the two are
         far apart in most columns (a panorama unlike the network's training rooms: a note says so and the
         labels' boundary is kept); ``"labels"``: the ceiling-wall boundary of the fused surface labels.
+    walls : str
+        ``"edges"`` (default): after the room step, each wall moves onto the image's ceiling-wall edge where the
+        image shows a clear one within 25 % of the labels' distance, and the ceiling height onto the walls that
+        show both creases (:func:`layout.wallsnap.snap_walls`), then the room (walls and ceiling height, the
+        ceiling curves fixed) scales onto the floor-wall edges where they show
+        (:func:`layout.wallsnap.snap_ceiling_height`); ``"labels"``: the room as the room step put it.
     """
 
     camera_height: float | None = None
@@ -127,8 +135,11 @@ class RunOptions:
     orientation: str = "net"
     box_edges: str = "silhouette"
     ceiling: str = "network"
+    walls: str = "edges"
 
     def __post_init__(self) -> None:
+        if self.walls not in WALL_MODES:
+            raise ValueError(f"walls: expected one of {WALL_MODES}, got {self.walls!r}")
         if self.ceiling not in CEILING_MODES:
             raise ValueError(f"ceiling: expected one of {CEILING_MODES}, got {self.ceiling!r}")
         if self.box_edges not in BOX_EDGE_MODES:
@@ -378,6 +389,24 @@ def _room_without_boxes(upright: np.ndarray, surf: Any, geom: Any, camera_height
     return free, geom_free
 
 
+def _snap_walls(upright: np.ndarray, geom: Any, obj_mask: np.ndarray, prog: Progress, notes: list[str]) -> Any:
+    """The room with its walls (and, where walls show both creases, its ceiling height) moved onto the image's
+    ceiling-wall and floor-wall edges, then scaled about the camera until its floor-wall curves lie on the image's
+    floor-wall edges (:mod:`layout.wallsnap`)."""
+    from layout.wallsnap import snap_ceiling_height, snap_walls
+
+    try:
+        walls = snap_walls(upright, geom.floor, geom.ceiling_z, geom.camera_height, object_mask=obj_mask)
+        height = snap_ceiling_height(upright, walls.floor, walls.ceiling_z, geom.camera_height, object_mask=obj_mask)
+    except ValueError as exc:  # e.g. a ceiling the labels put below the camera: nothing to snap to
+        notes.append(f"walls kept where the labels put them ({exc})")
+        return geom
+    prog.say(f"  {int(walls.moved.sum())} of {len(walls.moved)} walls moved onto the ceiling-wall edge"
+             + (f", ceiling height from {walls.height_walls} walls' two creases" if walls.height_walls else "")
+             + (f"; room scaled by {height.factor:.3f} onto the floor-wall edges" if height.moved else ""))
+    return replace(geom, floor=height.floor, ceiling_z=height.ceiling_z)
+
+
 def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | None = None) -> PipelineResult:
     """Run the whole pipeline on an RGB panorama.
 
@@ -451,6 +480,8 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
         else:
             if obj_mask.any() and geom.inlier_fraction < RELIABLE_INLIER_FRACTION:
                 surf, geom = _room_without_boxes(upright, surf, geom, h0, ceiling_net, notes)
+        if options.walls == "edges":
+            geom = _snap_walls(upright, geom, obj_mask, prog, notes)
         if geom.uncertain:
             notes.append("uncertain layout: " + "; ".join(geom.reasons))
 

@@ -213,6 +213,47 @@ def test_ceiling_boundary_from_the_boundary_network_or_the_labels(tmp_path, room
         RunOptions(ceiling="edges")
 
 
+def test_walls_snapped_to_the_image_edges_or_kept_where_the_labels_put_them(tmp_path, room_png, monkeypatch):
+    """`--walls edges` (default) moves the room step's walls onto the image's ceiling-wall edges, then scales the
+    room onto its floor-wall edges, and the scene carries that room; `--walls labels` makes neither call; a bad
+    mode is refused."""
+    import layout.wallsnap as ws
+
+    from apps.pipeline import RunOptions
+
+    calls = {"snap_walls": [], "snap_ceiling_height": []}
+
+    def spy(name):
+        real = getattr(ws, name)
+
+        def wrapped(*args, **kwargs):
+            res = real(*args, **kwargs)
+            calls[name].append(res)
+            return res
+        return wrapped
+
+    for name in calls:
+        monkeypatch.setattr(ws, name, spy(name))
+    scenes = {}
+    for mode in ("edges", "labels"):
+        out = tmp_path / mode
+        n = len(calls["snap_walls"])
+        assert main(["run", str(room_png / "pano.png"), "--out", str(out), "--size", "512", "--no-objects",
+                     "--quiet", "--walls", mode]) == 0
+        assert len(calls["snap_walls"]) - n == (mode == "edges")
+        scenes[mode] = json.loads((out / "scene.json").read_text())
+    assert len(calls["snap_ceiling_height"]) == 1
+    walls, height = calls["snap_walls"][0], calls["snap_ceiling_height"][0]
+    assert walls.moved.any()  # in this room two walls move, by 5 and 15 %
+    s = scenes["edges"]["camera"]["height_m"] / 1.6  # the room step works at the default 1.6 m
+    # the scene is the snapped room (turned back by the rectification's few hundredths of a degree)
+    np.testing.assert_allclose(np.array(scenes["edges"]["room"]["floor"]), height.floor * s, atol=5e-3)
+    assert scenes["edges"]["room"]["ceiling_z"] == pytest.approx(height.ceiling_z * s, abs=5e-3)
+    assert not np.allclose(scenes["edges"]["room"]["floor"], scenes["labels"]["room"]["floor"], atol=5e-2)
+    with pytest.raises(ValueError, match="walls: expected one of"):
+        RunOptions(walls="ceiling")
+
+
 def test_a_box_around_the_whole_panorama_gets_no_pose_but_the_run_finishes(tmp_path, room_png):
     """A detection 360 degrees wide (a bed under the camera, seen all around) has no perspective crop: the run
     goes on without a pose for it instead of failing (seen on ../shared/data/real/lgtnet_demo)."""
