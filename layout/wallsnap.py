@@ -4,7 +4,7 @@ Not in the paper. The room step (:mod:`layout.roomgeom`) places every wall
 where the surface labels put its ceiling-wall and floor-wall boundaries.
 Where the labeller's ceiling boundary drifts (a pink wall under a pink
 ceiling, a dark corner; on real photos more than on the synthetic rooms it
-was trained on) the wall moves with it, by 10-30 % of its distance on the
+was trained on) the wall moves with it, by up to 30 % of its distance on the
 two real panoramas of ../shared/data/real (docs/EVALUATION.md, "Session
 26"). The image itself usually shows the crease where a wall meets the
 ceiling as a grey-level step along the wall's whole width, and ceilings are
@@ -31,8 +31,8 @@ a textured wall).
 wall's distance in units of ``ceiling_z - camera_height``, a floor-wall
 curve in units of ``camera_height``. Where a wall shows a clear ceiling
 crease at ``s_c`` and a clear floor crease at ``s_f`` (both inside the
-grid), ``s_c / s_f`` is the factor by which the labels' ``ceiling_z -
-camera_height`` is off. When two or more walls show both and agree within
+grid), the labels' ``ceiling_z - camera_height`` is ``s_c / s_f`` times
+the true one. When two or more walls show both and agree within
 :data:`RATIO_SPREAD` grid steps, the ceiling height moves by their median
 factor and each wall's ceiling profile is read in the new units.
 
