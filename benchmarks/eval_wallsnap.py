@@ -57,7 +57,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.mask == "gt":
             objs, width = gt["objects"], float(gt["image"]["width"])
         else:
-            dets = json.loads((args.run / room.name / "detections.json").read_text())
+            det_p = args.run / room.name / "detections.json"
+            if not det_p.is_file():
+                raise SystemExit(f"{det_p}: missing (a pano2cad eval output has one per room); or use --mask gt")
+            dets = json.loads(det_p.read_text())
             objs, width = [d for d in dets["detections"] if d.get("used")], float(dets["width"])
         boxes = np.array([o["bbox_pano"] for o in objs if o.get("bbox_pano")], float).reshape(-1, 4)
         mask = boxes_mask(boxes * lab.shape[1] / width, lab.shape[1]) if len(boxes) else None
