@@ -121,7 +121,8 @@ class RunOptions:
         image shows a clear one within 25 % of the labels' distance, and the ceiling height onto the walls that
         show both creases (:func:`layout.wallsnap.snap_walls`), then the room (walls and ceiling height, the
         ceiling curves fixed) scales onto the floor-wall edges where they show
-        (:func:`layout.wallsnap.snap_ceiling_height`); ``"labels"``: the room as the room step put it.
+        (:func:`layout.wallsnap.snap_ceiling_height`; both in :func:`layout.wallsnap.snap_room`); ``"labels"``: the
+        room as the room step put it.
     """
 
     camera_height: float | None = None
@@ -392,19 +393,19 @@ def _room_without_boxes(upright: np.ndarray, surf: Any, geom: Any, camera_height
 def _snap_walls(upright: np.ndarray, geom: Any, obj_mask: np.ndarray, prog: Progress, notes: list[str]) -> Any:
     """The room with its walls (and, where walls show both creases, its ceiling height) moved onto the image's
     ceiling-wall and floor-wall edges, then scaled about the camera until its floor-wall curves lie on the image's
-    floor-wall edges (:mod:`layout.wallsnap`)."""
-    from layout.wallsnap import snap_ceiling_height, snap_walls
+    floor-wall edges (:func:`layout.wallsnap.snap_room`)."""
+    from layout.wallsnap import snap_room
 
     try:
-        walls = snap_walls(upright, geom.floor, geom.ceiling_z, geom.camera_height, object_mask=obj_mask)
-        height = snap_ceiling_height(upright, walls.floor, walls.ceiling_z, geom.camera_height, object_mask=obj_mask)
+        snap = snap_room(upright, geom.floor, geom.ceiling_z, geom.camera_height, object_mask=obj_mask)
     except ValueError as exc:  # e.g. a ceiling the labels put below the camera: nothing to snap to
         notes.append(f"walls kept where the labels put them ({exc})")
         return geom
+    walls, height = snap.walls, snap.height
     prog.say(f"  {int(walls.moved.sum())} of {len(walls.moved)} walls moved onto the ceiling-wall edge"
              + (f", ceiling height from {walls.height_walls} walls' two creases" if walls.height_walls else "")
              + (f"; room scaled by {height.factor:.3f} onto the floor-wall edges" if height.moved else ""))
-    return replace(geom, floor=height.floor, ceiling_z=height.ceiling_z)
+    return replace(geom, floor=snap.floor, ceiling_z=snap.ceiling_z)
 
 
 def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | None = None) -> PipelineResult:

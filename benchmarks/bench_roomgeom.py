@@ -55,12 +55,13 @@ from layout.labelmap import (  # noqa: E402
     render_room_labels,
     room_boundaries,
     sample_camera_xy,
+    shade_labels,
     visible_floor_fraction,
 )
 from layout.metrics import corner_error, iou_2d, iou_3d, pixel_error  # noqa: E402
 from layout.roomgeom import RoomGeometryError, estimate_room_geometry, observe_columns  # noqa: E402
 from layout.rooms import generate_rooms  # noqa: E402
-from layout.wallsnap import snap_ceiling_height, snap_walls  # noqa: E402
+from layout.wallsnap import snap_room  # noqa: E402
 
 SHARED = ROOT.parent / "shared"
 BENCH_DOC = ROOT / "docs" / "BENCHMARKS.md"
@@ -106,17 +107,12 @@ def speed_section(n_rooms=10, repeat=3):
         best = min((_timed(estimate_room_geometry, noisy, CAM_H, object_mask=mask) for _ in range(repeat)),
                    key=lambda t: t[1])
         rows["columns_noisy"].append(best[1:])
-        # the wall snap of the corrupted labels' room, on a grey panorama painted from the label map (ceiling,
-        # the two wall orientations and the floor in four grey levels, noise of 6 levels)
-        grey = np.array([128.0, 80.0, 215.0, 150.0, 130.0])[np.clip(lab, 0, 4)]
-        grey = grey + np.random.default_rng(i).normal(0.0, 6.0, grey.shape)
+        # the wall snap of the corrupted labels' room, on a grey panorama painted from the clean label map
+        grey = shade_labels(lab, i)
         geom = best[0]
 
-        def snap(geom=geom, grey=grey, mask=mask):
-            walls = snap_walls(grey, geom.floor, geom.ceiling_z, CAM_H, object_mask=mask)
-            return snap_ceiling_height(grey, walls.floor, walls.ceiling_z, CAM_H, object_mask=mask)
-
-        rows["snap"].append(min((_timed(snap) for _ in range(repeat)), key=lambda t: t[1])[1:])
+        rows["snap"].append(min((_timed(snap_room, grey, geom.floor, geom.ceiling_z, CAM_H, object_mask=mask)
+                                 for _ in range(repeat)), key=lambda t: t[1])[1:])
         if i < 5:
             _timed(estimate_room_geometry, lab, CAM_H, method="pointcloud")  # Open3D import and caches
             _, w, c = _timed(estimate_room_geometry, lab, CAM_H, method="pointcloud")
@@ -154,7 +150,8 @@ def speed_section(n_rooms=10, repeat=3):
         f"| **labels to floor polygon**, corrupted labels + object mask | {fmt('columns_noisy')} |",
         f"| labels to floor polygon, paper route (`method=\"pointcloud\"`: 6 views, Open3D alignment, greedy "
         f"planes; {len(rows['pointcloud'])} rooms) | {fmt('pointcloud')} |",
-        "| walls and ceiling height onto the image's creases (`layout.wallsnap.snap_walls` + `snap_ceiling_height`, "
+        "| walls and ceiling height onto the image's creases (`layout.wallsnap.snap_room`: `snap_walls` + "
+        "`snap_ceiling_height`, "
         f"the corrupted labels' room, a grey panorama painted from the labels) | {fmt('snap')} |",
         f"| 100 scale hypotheses scored against the labels (`room_boundaries` batch + `LabelCounts.agreement`) "
         f"| {fmt('hyp')} |",

@@ -13,7 +13,8 @@ marked used: the pipeline's mask) or the gt boxes (``--mask gt``, as
 pipeline with objects). Then :func:`layout.wallsnap.snap_walls`
 moves the walls onto the panorama's ceiling-wall edges and
 :func:`layout.wallsnap.snap_ceiling_height` scales the room onto its
-floor-wall edges (the same mask). Printed: the mean and median 3D IoU
+floor-wall edges (the same mask; both by :func:`layout.wallsnap.snap_room`, as
+the pipeline). Printed: the mean and median 3D IoU
 against gt.json (:func:`layout.metrics.score_layout`) and the mean
 wall-height error after each step, the rooms each step makes better or
 worse by more than 0.005, how many walls moved and rooms were scaled, the
@@ -36,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     from layout.likelihood import boxes_mask
     from layout.metrics import score_layout
     from layout.roomgeom import RoomGeometryError, estimate_room_geometry
-    from layout.wallsnap import snap_ceiling_height, snap_walls
+    from layout.wallsnap import snap_room
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("data", type=Path, help="synthetic set (pano2cad synth output; never seed 0 for choices)")
@@ -71,9 +72,9 @@ def main(argv: list[str] | None = None) -> int:
             continue
         img = np.array(Image.open(room / gt.get("image", {}).get("file", "pano.png")).convert("RGB"))
         t0 = time.perf_counter()
-        walls = snap_walls(img, g.floor, g.ceiling_z, h, object_mask=mask)
-        height = snap_ceiling_height(img, walls.floor, walls.ceiling_z, h, object_mask=mask)
+        snap = snap_room(img, g.floor, g.ceiling_z, h, object_mask=mask)
         secs.append(time.perf_counter() - t0)
+        walls, height = snap.walls, snap.height
         moved += int(walls.moved.sum())
         scaled += int(height.moved)
         gf, gc = gt["room"]["floor"], float(gt["room"]["ceiling_z"])

@@ -11,8 +11,8 @@ way estimated labels go wrong (:func:`layout.labelmap.perturb_labels`),
 recovers the Manhattan floor polygon and wall height from both
 (:func:`layout.roomgeom.estimate_room_geometry`), moves the corrupted room's
 walls and ceiling height onto the creases of a panorama
-(:func:`layout.wallsnap.snap_walls`, :func:`layout.wallsnap.snap_ceiling_height`;
-here a grey image painted from the analytic labels stands in for the photo)
+(:func:`layout.wallsnap.snap_room`; here a grey image painted from the
+analytic labels, :func:`layout.labelmap.shade_labels`, stands in for the photo)
 and saves a figure with the
 label maps and the recovered polygons over the true one to
 ``out/examples/layout_from_labels.png``. It also prints the corners in the
@@ -30,11 +30,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from layout.corners import polygon_to_corners_px  # noqa: E402
-from layout.labelmap import perturb_labels, render_room_labels, sample_camera_xy  # noqa: E402
+from layout.labelmap import perturb_labels, render_room_labels, sample_camera_xy, shade_labels  # noqa: E402
 from layout.metrics import score_layout  # noqa: E402
 from layout.roomgeom import estimate_room_geometry  # noqa: E402
 from layout.rooms import generate_room  # noqa: E402
-from layout.wallsnap import snap_ceiling_height, snap_walls  # noqa: E402
+from layout.wallsnap import snap_room  # noqa: E402
 
 CAMERA_HEIGHT = 1.6
 WIDTH = 1024
@@ -64,13 +64,12 @@ def main() -> int:
               f"(true {room.ceiling_z:.3f}), 3D IoU {s.iou_3d:.3f}, 2D IoU {s.iou_2d:.3f}, "
               f"corner error {100 * s.corner_error.mean:.1f} cm, {1000 * geo.timing_s:.0f} ms"
               + (f", uncertain: {'; '.join(geo.reasons)}" if geo.uncertain else ""))
-    # the walls onto the image's creases: a grey panorama painted from the analytic labels (floor, ceiling and the
-    # two wall orientations in four grey levels, some noise) stands in for the photo
-    grey = np.array([128.0, 80.0, 215.0, 150.0, 130.0, 128.0])[labels] + rng.normal(0.0, 6.0, labels.shape)
-    walls = snap_walls(grey, rough.floor, rough.ceiling_z, CAMERA_HEIGHT, object_mask=mask)
-    snapped = snap_ceiling_height(grey, walls.floor, walls.ceiling_z, CAMERA_HEIGHT, object_mask=mask)
+    # the walls onto the image's creases: a grey panorama painted from the analytic labels (one grey level per
+    # label, some noise) stands in for the photo
+    snapped = snap_room(shade_labels(labels, rng), rough.floor, rough.ceiling_z, CAMERA_HEIGHT, object_mask=mask)
     s = score_layout(snapped.floor, snapped.ceiling_z, truth, room.ceiling_z, CAMERA_HEIGHT, WIDTH)
-    print(f"corrupted labels, walls snapped to the image: {int(walls.moved.sum())} of {len(walls.moved)} walls moved, "
+    moved = snapped.walls.moved
+    print(f"corrupted labels, walls snapped to the image: {int(moved.sum())} of {len(moved)} walls moved, "
           f"wall height {snapped.ceiling_z:.3f} m, 3D IoU {s.iou_3d:.3f}, 2D IoU {s.iou_2d:.3f}")
     print("corners_px [u_ceiling, v_ceiling, u_floor, v_floor]:")
     print(np.round(polygon_to_corners_px(clean.floor, clean.ceiling_z, CAMERA_HEIGHT, WIDTH), 1))

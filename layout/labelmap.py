@@ -54,6 +54,7 @@ __all__ = [
     "sample_camera_xy",
     "visible_floor_fraction",
     "perturb_labels",
+    "shade_labels",
 ]
 
 #: Surface label ids (shared/CONVENTIONS.md, "Surface labels").
@@ -758,3 +759,36 @@ def perturb_labels(labels: ArrayLike, rng: int | np.random.Generator | None = No
         mask |= box
     lab[mask] = OBJECT
     return lab, mask
+
+
+#: Grey level of each surface label in :func:`shade_labels` (unknown, floor, ceiling, wall x, wall y, object).
+SHADES = (128.0, 80.0, 215.0, 150.0, 130.0, 128.0)
+
+
+def shade_labels(labels: ArrayLike, rng: int | np.random.Generator | None = None, *,
+                 noise: float = 6.0) -> FloatArray:
+    """A grey panorama painted from a label map: each label one grey level (:data:`SHADES`) plus Gaussian noise.
+
+    Stands in for a photo where a check needs the image's creases without a renderer (the wall snap of
+    :mod:`layout.wallsnap` on analytic labels).
+
+    Parameters
+    ----------
+    labels : (H, W) uint8
+        Surface labels 0..5.
+    rng : int, numpy Generator or None
+    noise : float
+        Standard deviation of the noise, grey levels.
+
+    Returns
+    -------
+    (H, W) float
+
+    >>> shade_labels(np.array([[2, 1]], np.uint8), noise=0.0).tolist()  # ceiling, floor
+    [[215.0, 80.0]]
+    """
+    lab = check_label_map(labels)
+    grey = np.asarray(SHADES, dtype=np.float64)[lab]
+    if noise > 0:
+        grey = grey + np.random.default_rng(rng).normal(0.0, float(noise), grey.shape)
+    return grey

@@ -4,7 +4,7 @@ Not in the paper. The room step (:mod:`layout.roomgeom`) places every wall
 where the surface labels put its ceiling-wall and floor-wall boundaries.
 Where the labeller's ceiling boundary drifts (a pink wall under a pink
 ceiling, a dark corner; on real photos more than on the synthetic rooms it
-was trained on) the wall moves with it, by up to 30 % of its distance on the
+was trained on) the wall moves with it, by up to 31 % of its distance on the
 two real panoramas of ../shared/data/real (docs/EVALUATION.md, "Session
 26"). The image itself usually shows the crease where a wall meets the
 ceiling as a grey-level step along the wall's whole width, and ceilings are
@@ -17,7 +17,7 @@ stretch or shrink). For each ``s`` the ceiling-wall curve of the moved wall
 (:func:`layout.labelmap.room_boundaries`) is scored by the mean, over the
 columns where the polygon shows the wall (``margin_deg`` from its corners,
 columns whose ceiling boundary an object box covers left out), of the image
-gradient across the curve (:func:`edge_profile`):
+gradient across the curve:
 
     C_k(s) = mean_u | grad I(u, v_k(u; s)) . n_k(u; s) |
 
@@ -69,11 +69,14 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from panogeom.coords import pixel_grid
+from panogeom.sampling import EquirectSampler, pad_equirect, sample_equirect
+
 from .labelmap import room_boundaries
 from .polygon import is_manhattan, is_simple, points_in_polygon
 
-__all__ = ["WallSnap", "HeightSnap", "snap_walls", "snap_ceiling_height", "edge_profile", "DEFAULT_SPAN",
-           "DEFAULT_MIN_PEAK", "DEFAULT_MIN_GAIN", "RATIO_SPREAD"]
+__all__ = ["WallSnap", "HeightSnap", "RoomSnap", "snap_walls", "snap_ceiling_height", "snap_room",
+           "DEFAULT_SPAN", "DEFAULT_MIN_PEAK", "DEFAULT_MIN_GAIN", "RATIO_SPREAD", "WALL_COLUMNS", "HEIGHT_COLUMNS"]
 
 FloatArray = NDArray[np.float64]
 
@@ -89,7 +92,12 @@ DEFAULT_MIN_GAIN: float = 1.5
 #: for the ceiling height to move by their median. Chosen on the tuning seeds 7000 / 8000 among 1, 6 and 12
 #: (docs/EVALUATION.md, "Session 26").
 RATIO_SPREAD: int = 6
+#: Fewest scoring columns (of 1024) for a wall to be tried, and for all walls together to scale the room.
+WALL_COLUMNS: int = 12
+HEIGHT_COLUMNS: int = 30
 _WORK_WIDTH = 1024  # columns the image is scored at (the room step's resolution)
+#: u of each column's centre at that width (:func:`panogeom.coords.pixel_grid`), (1024,).
+_COLUMN_U = pixel_grid(_WORK_WIDTH, 1)[0, :, 0]
 
 
 @dataclass(frozen=True)
@@ -129,6 +137,28 @@ class WallSnap:
 
 
 @dataclass(frozen=True)
+class RoomSnap:
+    """Result of :func:`snap_room`.
+
+    Attributes
+    ----------
+    floor : (K, 2) float
+        The snapped polygon, metres, same vertex order as the input.
+    ceiling_z : float
+        The snapped ceiling height, metres.
+    walls : WallSnap
+        The :func:`snap_walls` step.
+    height : HeightSnap
+        The :func:`snap_ceiling_height` step on its room.
+    """
+
+    floor: FloatArray
+    ceiling_z: float
+    walls: WallSnap
+    height: "HeightSnap"
+
+
+@dataclass(frozen=True)
 class HeightSnap:
     """Result of :func:`snap_ceiling_height`.
 
@@ -157,8 +187,19 @@ class HeightSnap:
         return self.factor != 1.0
 
 
-def _gray(image: ArrayLike, sigma: float) -> tuple[NDArray[np.float32], NDArray[np.float32]]:
-    """x and y gradients (Sobel) of the blurred grey image at 1024 columns, wrapped across the seam."""
+@dataclass(frozen=True)
+class _Edges:
+    """The image's x and y gradients at 1024 x 512, each padded once across the seam and the poles by the border
+    :class:`panogeom.sampling.EquirectSampler` samples linearly with (its ``pad``)."""
+
+    gx: NDArray[np.float32]
+    gy: NDArray[np.float32]
+    pad: int
+
+
+def _gradients(image: ArrayLike, sigma: float) -> _Edges:
+    """Sobel gradients of the blurred grey image at 1024 columns (blurred after padding across the seam and the
+    poles, :func:`panogeom.sampling.pad_equirect`)."""
     import cv2
 
     img = np.asarray(image)
@@ -167,36 +208,34 @@ def _gray(image: ArrayLike, sigma: float) -> tuple[NDArray[np.float32], NDArray[
     img = img.astype(np.float32)
     if img.shape[1] != _WORK_WIDTH:
         img = cv2.resize(img, (_WORK_WIDTH, _WORK_WIDTH // 2), interpolation=cv2.INTER_AREA)
-    pad = 8
-    img = cv2.copyMakeBorder(img, 0, 0, pad, pad, cv2.BORDER_WRAP)
-    img = cv2.GaussianBlur(img, (0, 0), sigma)
-    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)[:, pad:-pad]
-    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)[:, pad:-pad]
-    return np.ascontiguousarray(gx), np.ascontiguousarray(gy)
+    blur = 8
+    img = cv2.GaussianBlur(pad_equirect(img, blur), (0, 0), sigma)
+    pad = EquirectSampler.from_uv(np.zeros((1, 1, 2)), _WORK_WIDTH, _WORK_WIDTH // 2).pad
+    crop = slice(blur - pad, -(blur - pad))
+    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3)[crop, crop]
+    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3)[crop, crop]
+    return _Edges(np.ascontiguousarray(gx), np.ascontiguousarray(gy), pad)
 
 
-def edge_profile(gx: ArrayLike, gy: ArrayLike, rows: ArrayLike, columns: ArrayLike) -> FloatArray:
-    """Mean gradient across curves ``rows`` (..., W) over ``columns``: (...,).
-
-    ``gx``, ``gy`` are (H, W) image gradients; ``rows`` continuous rows of a
-    curve per column (pixel centres at integer + 0.5), the normal taken from
-    its slope between neighbouring columns."""
+def _edge_profile(edges: _Edges, rows: ArrayLike, columns: ArrayLike) -> FloatArray:
+    """Mean image gradient across curves, (...,): ``|grad . n|`` averaged over ``columns`` (C,) at the curves
+    ``rows`` (..., 1024) (continuous rows per column, pixel centres at integer + 0.5, :mod:`panogeom.coords`; the
+    normal from the slope between neighbouring columns), sampled bilinearly with the maps of
+    :class:`panogeom.sampling.EquirectSampler` on the gradients padded once."""
     import cv2
 
-    gx = np.asarray(gx, np.float32)
-    gy = np.asarray(gy, np.float32)
     v = np.asarray(rows, dtype=np.float64)
     cols = np.asarray(columns, dtype=np.intp)
     lead = v.shape[:-1]
     v2 = v.reshape(-1, v.shape[-1])
     slope = (np.roll(v2, -1, axis=1) - np.roll(v2, 1, axis=1)) / 2.0
-    x = np.broadcast_to(cols.astype(np.float32), (len(v2), len(cols)))
-    y = (v2[:, cols] - 0.5).astype(np.float32)
-    sx = cv2.remap(gx, np.ascontiguousarray(x), y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    sy = cv2.remap(gy, np.ascontiguousarray(x), y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    uv = np.stack(np.broadcast_arrays(_COLUMN_U[cols], v2[:, cols]), axis=-1)  # column centres on each curve
+    at = EquirectSampler.from_uv(uv, _WORK_WIDTH, _WORK_WIDTH // 2)
+    sx, sy = (cv2.remap(g, at.map_x, at.map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+              for g in (edges.gx, edges.gy))
     d = slope[:, cols]
-    g = np.abs(sy - d * sx) / np.sqrt(1.0 + d * d)
-    return g.mean(axis=1).reshape(lead)
+    across = np.abs(sy - d * sx) / np.sqrt(1.0 + d * d)
+    return across.mean(axis=1).reshape(lead)
 
 
 def _valid(floor: FloatArray) -> bool:
@@ -228,23 +267,24 @@ def _inputs(image: ArrayLike, floor: ArrayLike, ceiling_z: float, camera_height:
         mask = np.asarray(object_mask, dtype=bool)
         if mask.ndim != 2 or mask.shape[1] != 2 * mask.shape[0]:
             raise ValueError(f"object_mask: expected (H, 2H) bool, got shape {mask.shape}")
+        mask = mask.astype(np.uint8)
     return img, poly, cz, h, np.geomspace(1.0 / span, span, int(steps)), mask
 
 
 def _columns(wall: NDArray[np.intp], seen: NDArray[np.bool_], rows: FloatArray, margin_deg: float,
              mask: np.ndarray | None) -> NDArray[np.intp]:
     """Columns (of 1024) of ``seen`` at least ``margin_deg`` from a change of the wall seen ``wall`` (1024,)
-    (wrapping around the seam) whose boundary row ``rows`` (1024,) the object mask leaves free."""
+    (wrapping around the seam) whose boundary row ``rows`` (1024,) the object mask (uint8, any panorama size)
+    leaves free."""
     W = _WORK_WIDTH
     inner = seen & (wall >= 0)
     for dk in range(1, max(1, int(round(margin_deg / 360.0 * W))) + 1):
         inner &= (np.roll(wall, dk) == wall) & (np.roll(wall, -dk) == wall)
     cols = np.flatnonzero(inner)
     if mask is not None and len(cols):
-        r = mask.shape[0] / (W / 2)
-        rr = np.clip((rows[cols] * r).astype(np.intp), 0, mask.shape[0] - 1)
-        cc = np.clip(((cols + 0.5) * r).astype(np.intp), 0, mask.shape[1] - 1)
-        cols = cols[~mask[rr, cc]]
+        r = mask.shape[1] / W  # the mask's pixels per column of 1024
+        uv = np.stack([_COLUMN_U[cols], rows[cols]], axis=-1)[None] * r
+        cols = cols[sample_equirect(mask, uv, "nearest")[0] == 0]
     return cols
 
 
@@ -260,7 +300,7 @@ def _best(profile: FloatArray, min_peak: float, min_gain: float) -> tuple[int, f
 
 def snap_walls(image: ArrayLike, floor: ArrayLike, ceiling_z: float, camera_height: float, *,
                object_mask: ArrayLike | None = None, span: float = DEFAULT_SPAN, steps: int = 61,
-               margin_deg: float = 2.1, min_columns: int = 12, sigma: float = 1.0,
+               margin_deg: float = 2.1, min_columns: int = WALL_COLUMNS, sigma: float = 1.0,
                min_peak: float = DEFAULT_MIN_PEAK, min_gain: float = DEFAULT_MIN_GAIN) -> WallSnap:
     """Move each wall of ``floor`` onto the image's ceiling-wall edge where the image shows a clear one.
 
@@ -323,8 +363,14 @@ def snap_walls(image: ArrayLike, floor: ArrayLike, ceiling_z: float, camera_heig
     ([False, True, False, False], 2.0)
     """
     img, poly, cz, h, factors, mask = _inputs(image, floor, ceiling_z, camera_height, span, steps, object_mask)
+    return _walls(_gradients(img, sigma), poly, cz, h, factors, mask, margin_deg, min_columns, min_peak, min_gain)
+
+
+def _walls(grad: _Edges, poly: FloatArray, cz: float, h: float,
+           factors: FloatArray, mask: np.ndarray | None, margin_deg: float, min_columns: int, min_peak: float,
+           min_gain: float) -> WallSnap:
+    """:func:`snap_walls` on checked inputs and the image's gradients."""
     W = _WORK_WIDTH
-    gx, gy = _gray(img, sigma)
     K, n, one = len(poly), len(factors), len(factors) // 2
     b0 = room_boundaries(poly, cz, [0.0, 0.0], h, W)
     step = np.roll(poly, -1, axis=0) - poly
@@ -344,12 +390,12 @@ def snap_walls(image: ArrayLike, floor: ArrayLike, ceiling_z: float, camera_heig
         for j in (k, (k + 1) % K):
             polys[:, j, axis[k]] = poly[j, axis[k]] * factors
         b = room_boundaries(polys, np.full(n, cz), [0.0, 0.0], h, W)
-        ceil_p[k] = c = edge_profile(gx, gy, b.ceil_v, cols)
+        ceil_p[k] = c = _edge_profile(grad, b.ceil_v, cols)
         ic = int(np.argmax(c))
         peak[k] = c[ic] / max(float(np.median(c)), 1e-12)
         fcols = _columns(b0.wall_index, seen, b0.floor_v, margin_deg, mask)
         if len(fcols) >= min_columns:
-            floor_p[k] = f = edge_profile(gx, gy, b.floor_v, fcols)
+            floor_p[k] = f = _edge_profile(grad, b.floor_v, fcols)
             i_f = int(np.argmax(f))
             if (peak[k] >= min_peak and f[i_f] >= min_peak * np.median(f) and 0 < ic < n - 1
                     and 0 < i_f < n - 1):
@@ -396,7 +442,7 @@ def snap_walls(image: ArrayLike, floor: ArrayLike, ceiling_z: float, camera_heig
 
 def snap_ceiling_height(image: ArrayLike, floor: ArrayLike, ceiling_z: float, camera_height: float, *,
                         object_mask: ArrayLike | None = None, span: float = DEFAULT_SPAN, steps: int = 61,
-                        margin_deg: float = 2.1, min_columns: int = 30, sigma: float = 1.0,
+                        margin_deg: float = 2.1, min_columns: int = HEIGHT_COLUMNS, sigma: float = 1.0,
                         min_peak: float = DEFAULT_MIN_PEAK, min_gain: float = DEFAULT_MIN_GAIN) -> HeightSnap:
     """Scale the room about the camera, ceiling curves fixed, until its floor-wall curves lie on the image's edges.
 
@@ -406,7 +452,7 @@ def snap_ceiling_height(image: ArrayLike, floor: ArrayLike, ceiling_z: float, ca
     ``ceiling_z - camera_height`` by one factor ``t`` leaves the ceiling
     curves where they are and moves every floor curve; ``t`` is chosen on a
     log grid within ``1 / span .. span`` by the mean image gradient across
-    the floor curves of all walls (:func:`edge_profile`), over the
+    the floor curves of all walls (as for the walls), over the
     columns that show a wall (``margin_deg`` from its ends) and whose floor
     boundary the object mask leaves free, with the acceptance tests of
     :func:`snap_walls` (a clear peak, and a gain over ``t = 1``). The floor
@@ -438,15 +484,43 @@ def snap_ceiling_height(image: ArrayLike, floor: ArrayLike, ceiling_z: float, ca
     (1.0, 2.6)
     """
     img, poly, cz, h, factors, mask = _inputs(image, floor, ceiling_z, camera_height, span, steps, object_mask)
+    return _height(_gradients(img, sigma), poly, cz, h, factors, mask, margin_deg, min_columns, min_peak, min_gain)
+
+
+def _height(grad: _Edges, poly: FloatArray, cz: float, h: float,
+            factors: FloatArray, mask: np.ndarray | None, margin_deg: float, min_columns: int, min_peak: float,
+            min_gain: float) -> HeightSnap:
+    """:func:`snap_ceiling_height` on checked inputs and the image's gradients."""
     W = _WORK_WIDTH
-    gx, gy = _gray(img, sigma)
     b0 = room_boundaries(poly, cz, [0.0, 0.0], h, W)
     cols = _columns(b0.wall_index, np.ones(W, bool), b0.floor_v, margin_deg, mask)
     if len(cols) < min_columns:
         return HeightSnap(floor=poly, ceiling_z=cz, factor=1.0, peak=math.nan, columns=len(cols))
     b = room_boundaries(poly[None] * factors[:, None, None], h + (cz - h) * factors, [0.0, 0.0], h, W)
-    i, peak, gain = _best(edge_profile(gx, gy, b.floor_v, cols), min_peak, min_gain)
+    i, peak, gain = _best(_edge_profile(grad, b.floor_v, cols), min_peak, min_gain)
     if gain <= 0:
         return HeightSnap(floor=poly, ceiling_z=cz, factor=1.0, peak=peak, columns=len(cols))
     t = float(factors[i])
     return HeightSnap(floor=poly * t, ceiling_z=h + (cz - h) * t, factor=t, peak=peak, columns=len(cols))
+
+
+def snap_room(image: ArrayLike, floor: ArrayLike, ceiling_z: float, camera_height: float, *,
+              object_mask: ArrayLike | None = None, span: float = DEFAULT_SPAN, steps: int = 61,
+              margin_deg: float = 2.1, sigma: float = 1.0, min_peak: float = DEFAULT_MIN_PEAK,
+              min_gain: float = DEFAULT_MIN_GAIN) -> RoomSnap:
+    """:func:`snap_walls`, then :func:`snap_ceiling_height` on its room: what the pipeline runs after the room step
+    (``pano2cad run --walls edges``). The image's gradients are computed once for both.
+
+    Parameters, errors and defaults as :func:`snap_walls` (``min_columns``: :data:`WALL_COLUMNS` and
+    :data:`HEIGHT_COLUMNS`).
+
+    Returns
+    -------
+    RoomSnap
+    """
+    img, poly, cz, h, factors, mask = _inputs(image, floor, ceiling_z, camera_height, span, steps, object_mask)
+    grad = _gradients(img, sigma)
+    walls = _walls(grad, poly, cz, h, factors, mask, margin_deg, WALL_COLUMNS, min_peak, min_gain)
+    height = _height(grad, walls.floor, walls.ceiling_z, h, factors, mask, margin_deg, HEIGHT_COLUMNS, min_peak,
+                     min_gain)
+    return RoomSnap(floor=height.floor, ceiling_z=height.ceiling_z, walls=walls, height=height)

@@ -215,40 +215,35 @@ def test_ceiling_boundary_from_the_boundary_network_or_the_labels(tmp_path, room
 
 def test_walls_snapped_to_the_image_edges_or_kept_where_the_labels_put_them(tmp_path, room_png, monkeypatch):
     """`--walls edges` (default) moves the room step's walls onto the image's ceiling-wall edges, then scales the
-    room onto its floor-wall edges, and the scene carries that room; `--walls labels` makes neither call; a bad
-    mode is refused."""
+    room onto its floor-wall edges (`layout.wallsnap.snap_room`), and the scene carries that room; `--walls
+    labels` makes no such call; a bad mode is refused."""
     import layout.wallsnap as ws
 
     from apps.pipeline import RunOptions
 
-    calls = {"snap_walls": [], "snap_ceiling_height": []}
+    calls = []
+    real = ws.snap_room
 
-    def spy(name):
-        real = getattr(ws, name)
+    def spy(*args, **kwargs):
+        res = real(*args, **kwargs)
+        calls.append(res)
+        return res
 
-        def wrapped(*args, **kwargs):
-            res = real(*args, **kwargs)
-            calls[name].append(res)
-            return res
-        return wrapped
-
-    for name in calls:
-        monkeypatch.setattr(ws, name, spy(name))
+    monkeypatch.setattr(ws, "snap_room", spy)
     scenes = {}
     for mode in ("edges", "labels"):
         out = tmp_path / mode
-        n = len(calls["snap_walls"])
+        n = len(calls)
         assert main(["run", str(room_png / "pano.png"), "--out", str(out), "--size", "512", "--no-objects",
                      "--quiet", "--walls", mode]) == 0
-        assert len(calls["snap_walls"]) - n == (mode == "edges")
+        assert len(calls) - n == (mode == "edges")
         scenes[mode] = json.loads((out / "scene.json").read_text())
-    assert len(calls["snap_ceiling_height"]) == 1
-    walls, height = calls["snap_walls"][0], calls["snap_ceiling_height"][0]
-    assert walls.moved.any()  # in this room two walls move, by 5 and 15 %
+    snap = calls[0]
+    assert snap.walls.moved.any()  # in this room two walls move, by 5 and 15 %
     s = scenes["edges"]["camera"]["height_m"] / 1.6  # the room step works at the default 1.6 m
     # the scene is the snapped room (turned back by the rectification's few hundredths of a degree)
-    np.testing.assert_allclose(np.array(scenes["edges"]["room"]["floor"]), height.floor * s, atol=5e-3)
-    assert scenes["edges"]["room"]["ceiling_z"] == pytest.approx(height.ceiling_z * s, abs=5e-3)
+    np.testing.assert_allclose(np.array(scenes["edges"]["room"]["floor"]), snap.floor * s, atol=5e-3)
+    assert scenes["edges"]["room"]["ceiling_z"] == pytest.approx(snap.ceiling_z * s, abs=5e-3)
     assert not np.allclose(scenes["edges"]["room"]["floor"], scenes["labels"]["room"]["floor"], atol=5e-2)
     with pytest.raises(ValueError, match="walls: expected one of"):
         RunOptions(walls="ceiling")

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from layout.labelmap import room_boundaries
+from layout.labelmap import render_room_labels, room_boundaries, shade_labels
 from layout.polygon import is_simple
-from layout.wallsnap import snap_ceiling_height, snap_walls
+from layout.wallsnap import snap_ceiling_height, snap_room, snap_walls
 
 H_CAM, CZ = 1.5, 2.6
 L_ROOM = np.array([[-2.0, -1.5], [2.5, -1.5], [2.5, 0.5], [1.0, 0.5], [1.0, 2.0], [-2.0, 2.0]])
@@ -20,12 +20,9 @@ def _image(ceil_v: np.ndarray, noise: float = 0.0, seed: int = 0) -> np.ndarray:
     return img
 
 
-def _three_tone(floor: np.ndarray, noise: float = 6.0) -> np.ndarray:
-    """Ceiling, walls and floor in three grey levels, the room ``floor`` seen from the camera."""
-    b = room_boundaries(floor, CZ, [0.0, 0.0], H_CAM, 1024)
-    rows = np.arange(512)[:, None] + 0.5
-    img = np.where(rows < b.ceil_v, 215.0, np.where(rows < b.floor_v, 140.0, 80.0))
-    return img + np.random.default_rng(3).normal(0.0, noise, img.shape)
+def _three_tone(floor: np.ndarray) -> np.ndarray:
+    """The room ``floor`` seen from the camera, painted from its analytic labels (ceiling, walls, floor)."""
+    return shade_labels(render_room_labels(floor, CZ, [0.0, 0.0], H_CAM, 1024), 3)
 
 
 def _ceiling(floor: np.ndarray) -> np.ndarray:
@@ -187,3 +184,35 @@ def test_the_height_snap_checks_its_input_as_the_wall_snap():
         snap_ceiling_height(np.zeros((64, 128)), L_ROOM, 1.0, H_CAM)
     with pytest.raises(ValueError, match="panorama"):
         snap_ceiling_height(np.zeros((64, 64)), L_ROOM, CZ, H_CAM)
+
+
+def test_snap_room_is_the_wall_snap_then_the_height_snap_on_its_room():
+    """What the pipeline runs: the same result as the two functions called in turn (one gradient image for both)."""
+    img = _three_tone(L_ROOM)
+    guess = L_ROOM.copy()
+    guess[1:3, 0] = 2.2
+    cz = H_CAM + (CZ - H_CAM) * 1.1
+    res = snap_room(img, guess, cz, H_CAM)
+    walls = snap_walls(img, guess, cz, H_CAM)
+    height = snap_ceiling_height(img, walls.floor, walls.ceiling_z, H_CAM)
+    np.testing.assert_array_equal(res.walls.floor, walls.floor)
+    assert res.walls.ceiling_z == walls.ceiling_z and res.walls.height_walls == walls.height_walls
+    np.testing.assert_array_equal(res.floor, height.floor)
+    assert res.ceiling_z == height.ceiling_z == res.height.ceiling_z
+    assert res.walls.moved[1] and res.walls.height_walls >= 2  # this room needs both: wall 1 and the ceiling
+    np.testing.assert_allclose(res.floor, L_ROOM, atol=0.03)
+    assert res.ceiling_z == pytest.approx(CZ, abs=0.02)
+    with pytest.raises(ValueError, match="camera_height < ceiling_z"):
+        snap_room(img, guess, 1.0, H_CAM)
+
+
+def test_shade_labels_paints_one_grey_per_label():
+    from layout.labelmap import SHADES
+
+    lab = np.array([[0, 1, 2, 3], [4, 5, 1, 2]], np.uint8)
+    np.testing.assert_array_equal(shade_labels(lab, noise=0.0), np.asarray(SHADES)[lab])
+    a, b = shade_labels(lab, 3), shade_labels(lab, 3)
+    np.testing.assert_array_equal(a, b)  # seeded
+    assert 0 < np.std(a - shade_labels(lab, noise=0.0)) < 20
+    with pytest.raises(ValueError, match="0..5"):
+        shade_labels(np.array([[0, 9]], np.uint8))
