@@ -424,6 +424,7 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
     """
     from layout.likelihood import observe_labels, surface_likelihood
     from layout.modelfit import candidate_yaws, occluded_edges, select_models
+    from layout.placement import BACK_TO_WALL
     from posecrf.library import builtin_library
     from layout.roomgeom import RELIABLE_INLIER_FRACTION, RoomGeometryError, estimate_room_geometry
     from layout.sampler import DetectedObject, PosteriorError, SamplerConfig, map_estimate
@@ -546,7 +547,8 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
         with prog.stage("models", "model choice by box fit"):
             choice = select_models([a[0] for a in alternatives], W, H, appearance=[a[1] for a in alternatives],
                                    camera_height=options.camera_height, floor=geom.floor, floor_camera_height=h0,
-                                   wall_ratio=geom.ceiling_z / h0)
+                                   wall_ratio=geom.ceiling_z / h0,
+                                   back_to_wall=[a[0][0].cls in BACK_TO_WALL for a in alternatives])
             changed = 0
             for k, j in enumerate(choice.index):
                 alt, _, lib_models, est, ray = alternatives[k]

@@ -45,6 +45,18 @@ box alone cannot rule out often puts the object through a wall, which the
 sampler's hard constraint would otherwise resolve by pulling the object
 towards the camera.
 
+Objects that stand with their back to a wall (beds, TVs, wardrobes, sofas,
+nightstands: ``select_models(back_to_wall=...)``, the context prior's
+:data:`layout.placement.BACK_TO_WALL`) also pay ``w_g rho(gap / sigma_g)``,
+``gap`` being how far the middle of the footprint's back edge, fitted to its
+box at ``H``, stands clear of the walls of the floor scaled to ``H``
+(:func:`wall_gap`): a bed turned by 180 degrees (its box is the same) or a
+model of the wrong size leaves its back in the middle of the room. This is
+the paper's object-to-wall term (Sec. 3.3, measured from the back edge as
+the sampler does) brought into the model choice, where it can still change
+the model and the yaw; the sampler, which keeps each object's model, can only
+move the object, which its box then holds in place.
+
 Given the room's wall height in camera heights (``wall_ratio``, which the
 room step measures well: 0.006 camera heights mean absolute error on the
 synthetic seed-0 rooms, docs/EVALUATION.md), ``P(H)`` also holds a log-normal prior on
@@ -72,7 +84,8 @@ from panogeom.coords import pixel_to_lonlat
 from .polygon import distance_to_boundary, oriented_rectangles, points_in_polygon
 from .sampler import DetectedObject, _BoxEdges, _fit_edges, geman_mcclure, initialise_objects, thin_footprints
 
-__all__ = ["ModelChoice", "select_models", "candidate_yaws", "occluded_edges", "room_misfit", "DEFAULT_EDGE_SIGMA",
+__all__ = ["ModelChoice", "select_models", "candidate_yaws", "occluded_edges", "room_misfit", "wall_gap",
+           "DEFAULT_EDGE_SIGMA", "DEFAULT_GAP_WEIGHT", "DEFAULT_GAP_SIGMA",
            "DEFAULT_APPEARANCE_WEIGHT", "DEFAULT_PICK_APPEARANCE_WEIGHT", "DEFAULT_HEIGHT_PRIOR", "DEFAULT_WALL_PRIOR",
            "DEFAULT_ROOM_WEIGHT", "DEFAULT_ROOM_SIGMA"]
 
@@ -108,6 +121,11 @@ DEFAULT_PICK_APPEARANCE_WEIGHT: float = 3.0
 #: Weight of the room term (a footprint through a wall; units of one edge's robust cost) and its depth scale, m.
 DEFAULT_ROOM_WEIGHT: float = 1.0
 DEFAULT_ROOM_SIGMA: float = 0.2
+#: Weight of the wall-gap term (an object that stands with its back to a wall, :func:`wall_gap`, whose back is clear
+#: of every wall; units of one edge's robust cost) and its gap scale, m. Weight 2 against 1 and against the term in the
+#: pick alone, tuning seeds 7000 / 8000 (docs/EVALUATION.md, "Session 27").
+DEFAULT_GAP_WEIGHT: float = 2.0
+DEFAULT_GAP_SIGMA: float = 0.2
 
 
 @dataclass(frozen=True)
@@ -316,6 +334,51 @@ def room_misfit(xy: ArrayLike, yaw: ArrayLike, size2: ArrayLike, floor: ArrayLik
     return geman_mcclure(depth.max(axis=1) / float(sigma))
 
 
+def wall_gap(xy: ArrayLike, yaw: ArrayLike, length: ArrayLike, floor: ArrayLike, sigma: float) -> FloatArray:
+    """Robust cost of a back edge standing clear of the walls: ``rho(gap / sigma)``, (F,).
+
+    ``gap`` is the distance from the middle of the footprint's back edge
+    (half the length behind the centre, opposite the front) to the floor
+    polygon's boundary, 0 where that point is outside the floor (the room
+    term, :func:`room_misfit`, prices a footprint through a wall). Beds, TVs,
+    wardrobes, sofas and nightstands stand with their back to a wall
+    (:data:`layout.placement.BACK_TO_WALL`, the context prior's anchor): a
+    wrong model of such an object, or its yaw turned by 90 or 180 degrees,
+    fitted to the object's box, leaves its back in the middle of the room.
+
+    Parameters
+    ----------
+    xy : (F, 2) float
+        Footprint centres, metres.
+    yaw : (F,) float
+        Radians, CCW from +x to the front.
+    length : (F,) float
+        Footprint length along the front, metres.
+    floor : (K, 2) float
+        Floor polygon at the same scale.
+    sigma : float
+        Gap scale, metres.
+
+    Returns
+    -------
+    (F,) float
+        In [0, 1).
+
+    Examples
+    --------
+    >>> room = [[-2.0, -2.0], [2.0, -2.0], [2.0, 2.0], [-2.0, 2.0]]
+    >>> wall_gap([[1.5, 0.0], [1.3, 0.0], [0.0, 0.0]], [math.pi, math.pi, 0.0], [1.0, 1.0, 1.0], room, 0.2
+    ...          ).round(2).tolist()
+    [0.0, 0.5, 0.98]
+    """
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    yaw = np.asarray(yaw, dtype=np.float64).reshape(-1)
+    half = 0.5 * np.asarray(length, dtype=np.float64).reshape(-1)
+    back = xy - half[:, None] * np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
+    gap = np.where(points_in_polygon(back, floor), distance_to_boundary(back, floor), 0.0)
+    return geman_mcclure(gap / float(sigma))
+
+
 def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, height: int, *,
                   appearance: Sequence[ArrayLike] | None = None, camera_height: float | None = None,
                   height_range: tuple[float, float] = (0.8, 2.6), n_heights: int = 19, levels: int = 3,
@@ -326,7 +389,9 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
                   room_weight: float | None = None, room_sigma: float | None = None,
                   wall_ratio: float | None = None,
                   wall_prior: tuple[float, float] | None = DEFAULT_WALL_PRIOR,
-                  pick_appearance_weight: float | None = None) -> ModelChoice:
+                  pick_appearance_weight: float | None = None,
+                  back_to_wall: Sequence[bool] | None = None,
+                  gap_weight: float | None = None, gap_sigma: float | None = None) -> ModelChoice:
     """Choose each object's model by how well it fits its box at one shared camera height.
 
     Parameters
@@ -369,6 +434,15 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
     room_weight, room_sigma : float, optional
         ``w_r`` and the depth scale of the room term (defaults
         :data:`DEFAULT_ROOM_WEIGHT`, :data:`DEFAULT_ROOM_SIGMA` m).
+    back_to_wall : sequence of N bool, optional
+        Objects that stand with their back to a wall (beds, TVs, ...,
+        :data:`layout.placement.BACK_TO_WALL`). With a ``floor``, each of
+        their candidates also pays ``w_g`` :func:`wall_gap` of its footprint
+        fitted to its box at each height, against the floor scaled to it.
+        None: no object.
+    gap_weight, gap_sigma : float, optional
+        ``w_g`` and the gap scale of that term (defaults
+        :data:`DEFAULT_GAP_WEIGHT`, :data:`DEFAULT_GAP_SIGMA` m).
     wall_ratio : float, optional
         The room's wall height in camera heights (the room step's: mean
         absolute error 0.006 camera heights on the synthetic seed-0 rooms,
@@ -449,6 +523,17 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         raise ValueError(f"room_weight: expected a finite weight >= 0, got {room_weight!r}")
     if not (math.isfinite(room_sigma) and room_sigma > 0):
         raise ValueError(f"room_sigma: expected metres > 0, got {room_sigma!r}")
+    gap_weight = DEFAULT_GAP_WEIGHT if gap_weight is None else float(gap_weight)
+    gap_sigma = DEFAULT_GAP_SIGMA if gap_sigma is None else float(gap_sigma)
+    if not (math.isfinite(gap_weight) and gap_weight >= 0):
+        raise ValueError(f"gap_weight: expected a finite weight >= 0, got {gap_weight!r}")
+    if not (math.isfinite(gap_sigma) and gap_sigma > 0):
+        raise ValueError(f"gap_sigma: expected metres > 0, got {gap_sigma!r}")
+    if back_to_wall is not None:
+        back_to_wall = np.asarray(back_to_wall)
+        if back_to_wall.shape != (n,) or back_to_wall.dtype != bool:
+            raise ValueError(f"back_to_wall: expected {n} booleans (one per object), got shape {back_to_wall.shape} "
+                             f"of {back_to_wall.dtype}")
     if floor is not None:
         floor = np.asarray(floor, dtype=np.float64)
         if floor.ndim != 2 or floor.shape[1] != 2 or len(floor) < 3 or not np.isfinite(floor).all():
@@ -467,6 +552,8 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
     yaw_flat = np.array([o.yaw for o in flat])
     size2_flat = np.array([o.size[:2] for o in flat], dtype=np.float64).reshape(-1, 2)
     use_room = floor is not None and room_weight > 0
+    backed = (np.zeros(len(flat), bool) if back_to_wall is None or floor is None or gap_weight == 0
+              else back_to_wall[owner])
     a_raw = np.concatenate([a - a.min() for a in app])
     a_flat = a_raw * float(appearance_weight)
 
@@ -489,6 +576,10 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
             if use_room:
                 fit = fit + room_weight * room_misfit(xy, yaw_flat[sel], size2_flat[sel],
                                                       floor * (float(hk) / float(floor_camera_height)), room_sigma)
+            b = backed[sel]
+            if b.any():
+                fit[b] += gap_weight * wall_gap(xy[b], yaw_flat[sel][b], size2_flat[sel][b, 0],
+                                                floor * (float(hk) / float(floor_camera_height)), gap_sigma)
             cost[owner[sel], slot[sel]] = fit + a_flat[sel]
             prof[k] = cost.min(axis=1).sum() + prior(float(hk))
             costs.append(cost)

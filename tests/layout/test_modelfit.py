@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from layout.modelfit import occluded_edges, room_misfit, select_models
+from layout.modelfit import occluded_edges, room_misfit, select_models, wall_gap
 from layout.sampler import DetectedObject, thin_footprints
 from panogeom.project import world_box_to_pano
 
@@ -158,6 +158,38 @@ def test_the_room_term_rejects_a_candidate_through_a_wall():
         select_models(cands, W, H, floor=room[:2], floor_camera_height=cam)
     with pytest.raises(ValueError, match="room_sigma"):
         select_models(cands, W, H, floor=room, floor_camera_height=cam, room_sigma=0.0)
+
+
+def test_the_wall_gap_term_turns_a_bed_s_back_to_the_wall():
+    """A bed with its head against the far wall, its candidates the true yaw and the half turn: a cuboid's box
+    cannot tell them apart, and an appearance cost slightly for the turn picks it. Told that beds stand with their
+    back to a wall, the choice sees the turned bed's back 2 m clear of every wall and picks the true yaw."""
+    cam = 1.5
+    size, center = np.array([2.0, 1.6, 0.6]), np.array([3.0, 0.2, 0.3])
+    box = world_box_to_pano(center, size, math.pi, W, H, camera_height=cam).extent
+    cands = [[DetectedObject("bed", box, size, math.pi + t, model_id="bed-0") for t in (0.0, math.pi)]]
+    room = np.array([[-3.0, -3.0], [4.0, -3.0], [4.0, 3.0], [-3.0, 3.0]])  # the head wall at x = 4
+    fit = dict(camera_height=cam, appearance=[np.array([0.2, 0.0])], floor=room, floor_camera_height=cam)
+    assert select_models(cands, W, H, **fit).index.tolist() == [1]
+    assert select_models(cands, W, H, **fit, back_to_wall=[False]).index.tolist() == [1]
+    res = select_models(cands, W, H, **fit, back_to_wall=[True])
+    assert res.index.tolist() == [0]
+    assert select_models(cands, W, H, **fit, back_to_wall=[True], gap_weight=0.0).index.tolist() == [1]
+    # without a floor there is no wall to stand against
+    assert select_models(cands, W, H, camera_height=cam, appearance=[np.array([0.2, 0.0])],
+                         back_to_wall=[True]).index.tolist() == [1]
+    # the term itself: 0 with the back on (or through) a wall, rho(gap / sigma) in the room, bounded by 1
+    cost = wall_gap([[3.0, 0.2], [3.2, 0.2], [2.8, 0.2], [3.0, 0.2]], [math.pi, math.pi, math.pi, 0.0],
+                    [2.0, 2.0, 2.0, 2.0], room, 0.2)
+    assert cost[0] < 1e-12 and cost[1] == 0.0 and cost[2] == pytest.approx(0.5) and 0.99 < cost[3] < 1.0
+    with pytest.raises(ValueError, match="back_to_wall: expected 1 booleans"):
+        select_models(cands, W, H, **fit, back_to_wall=[True, False])
+    with pytest.raises(ValueError, match="back_to_wall: expected 1 booleans"):
+        select_models(cands, W, H, **fit, back_to_wall=[1])
+    with pytest.raises(ValueError, match="gap_sigma"):
+        select_models(cands, W, H, **fit, back_to_wall=[True], gap_sigma=-1.0)
+    with pytest.raises(ValueError, match="gap_weight"):
+        select_models(cands, W, H, **fit, back_to_wall=[True], gap_weight=float("nan"))
 
 
 def test_input_errors():
