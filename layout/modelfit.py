@@ -379,6 +379,18 @@ def wall_gap(xy: ArrayLike, yaw: ArrayLike, length: ArrayLike, floor: ArrayLike,
     return geman_mcclure(gap / float(sigma))
 
 
+def _term_scales(name: str, weight: float | None, sigma: float | None, default_weight: float,
+                 default_sigma: float) -> tuple[float, float]:
+    """A floor term's weight (finite, >= 0) and scale (metres, > 0), defaults where None; ValueError otherwise."""
+    weight = default_weight if weight is None else float(weight)
+    sigma = default_sigma if sigma is None else float(sigma)
+    if not (math.isfinite(weight) and weight >= 0):
+        raise ValueError(f"{name}_weight: expected a finite weight >= 0, got {weight!r}")
+    if not (math.isfinite(sigma) and sigma > 0):
+        raise ValueError(f"{name}_sigma: expected metres > 0, got {sigma!r}")
+    return weight, sigma
+
+
 def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, height: int, *,
                   appearance: Sequence[ArrayLike] | None = None, camera_height: float | None = None,
                   height_range: tuple[float, float] = (0.8, 2.6), n_heights: int = 19, levels: int = 3,
@@ -517,18 +529,8 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         raise ValueError(f"wall_prior: expected (median metres > 0, sigma > 0) or None, got {wall_prior!r}")
     if wall_ratio is not None and not (math.isfinite(wall_ratio) and wall_ratio > 0):
         raise ValueError(f"wall_ratio: expected a wall height in camera heights > 0 or None, got {wall_ratio!r}")
-    room_weight = DEFAULT_ROOM_WEIGHT if room_weight is None else float(room_weight)
-    room_sigma = DEFAULT_ROOM_SIGMA if room_sigma is None else float(room_sigma)
-    if not (math.isfinite(room_weight) and room_weight >= 0):
-        raise ValueError(f"room_weight: expected a finite weight >= 0, got {room_weight!r}")
-    if not (math.isfinite(room_sigma) and room_sigma > 0):
-        raise ValueError(f"room_sigma: expected metres > 0, got {room_sigma!r}")
-    gap_weight = DEFAULT_GAP_WEIGHT if gap_weight is None else float(gap_weight)
-    gap_sigma = DEFAULT_GAP_SIGMA if gap_sigma is None else float(gap_sigma)
-    if not (math.isfinite(gap_weight) and gap_weight >= 0):
-        raise ValueError(f"gap_weight: expected a finite weight >= 0, got {gap_weight!r}")
-    if not (math.isfinite(gap_sigma) and gap_sigma > 0):
-        raise ValueError(f"gap_sigma: expected metres > 0, got {gap_sigma!r}")
+    room_weight, room_sigma = _term_scales("room", room_weight, room_sigma, DEFAULT_ROOM_WEIGHT, DEFAULT_ROOM_SIGMA)
+    gap_weight, gap_sigma = _term_scales("gap", gap_weight, gap_sigma, DEFAULT_GAP_WEIGHT, DEFAULT_GAP_SIGMA)
     if back_to_wall is not None:
         back_to_wall = np.asarray(back_to_wall)
         if back_to_wall.shape != (n,) or back_to_wall.dtype != bool:
@@ -573,13 +575,13 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
         for k, hk in enumerate(hs):
             cost = np.full((n, m_max), np.inf)
             fit, xy = _misfit(edges, yaw_flat[sel], centers[sel], free_h[sel], float(hk), edge_sigma)
-            if use_room:
-                fit = fit + room_weight * room_misfit(xy, yaw_flat[sel], size2_flat[sel],
-                                                      floor * (float(hk) / float(floor_camera_height)), room_sigma)
             b = backed[sel]
+            if use_room or b.any():
+                floor_h = floor * (float(hk) / float(floor_camera_height))
+            if use_room:
+                fit = fit + room_weight * room_misfit(xy, yaw_flat[sel], size2_flat[sel], floor_h, room_sigma)
             if b.any():
-                fit[b] += gap_weight * wall_gap(xy[b], yaw_flat[sel][b], size2_flat[sel][b, 0],
-                                                floor * (float(hk) / float(floor_camera_height)), gap_sigma)
+                fit[b] += gap_weight * wall_gap(xy[b], yaw_flat[sel][b], size2_flat[sel][b, 0], floor_h, gap_sigma)
             cost[owner[sel], slot[sel]] = fit + a_flat[sel]
             prof[k] = cost.min(axis=1).sum() + prior(float(hk))
             costs.append(cost)
