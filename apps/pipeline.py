@@ -245,14 +245,15 @@ def _object_mask(dets: list, shape: tuple[int, int]) -> np.ndarray:
 
 
 def _outline(model, max_points: int = 400) -> np.ndarray:
-    """Object-frame outline points of a library model (cached per model id, size and point budget) for the
-    box fits; the model choice fits every candidate with a lighter outline (``max_points=100``)."""
-    key = (model.id, len(model.vertices), tuple(float(v) for v in model.size), int(max_points))
+    """Object-frame outline points of a library model (:func:`layout.sampler.mesh_outline`, cached per model id
+    and size) for the box fits; the model choice fits every candidate with a lighter outline (``max_points=100``,
+    the first rows of the full one)."""
+    key = (model.id, len(model.vertices), tuple(float(v) for v in model.size))
     if key not in _OUTLINES:
-        from layout.sampler import hull_outline
+        from layout.sampler import mesh_outline
 
-        _OUTLINES[key] = hull_outline(model.vertices, max_points=max_points)
-    return _OUTLINES[key]
+        _OUTLINES[key] = mesh_outline(model.vertices, model.faces, max_points=400)
+    return _OUTLINES[key][:max_points]
 
 
 _OUTLINES: dict[tuple, np.ndarray] = {}

@@ -7,9 +7,10 @@ Run::
     .venv/bin/python benchmarks/eval_scale.py out/eval88 out/table2_gtboxes [--update-docs]
 
 1. Camera height of single objects from their gt box with the TRUE model, true yaw and the camera height left
-   free (:func:`layout.sampler.initialise_objects`), predicting the box from the model's bounding cuboid or
-   from its hull outline (:func:`layout.sampler.hull_outline`): median relative error per class (objects
-   with at least 3000 visible pixels, first 60 rooms).
+   free (:func:`layout.sampler.initialise_objects`), predicting the box from the model's bounding cuboid, from
+   its convex hull (:func:`layout.sampler.hull_outline`) or from its mesh outline
+   (:func:`layout.sampler.mesh_outline`, the pipeline's): median relative error per class and the 90th
+   percentile of its absolute value (objects with at least 3000 visible pixels, first 60 rooms).
 2. From the eval run (scene_init.json = the sampler's initial hypothesis, scene.json = its result): camera-height
    error at initialisation and after sampling; per class the share of objects whose retrieved model is the
    true one, and the median position error at initialisation of those with the right and the wrong model;
@@ -33,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from layout.sampler import DetectedObject, hull_outline, initialise_objects
+from layout.sampler import DetectedObject, hull_outline, initialise_objects, mesh_outline
 from posecrf.library import builtin_library
 
 SECTION = "## Where the scale and position errors come from (Table 2 breakdown)"
@@ -44,11 +45,11 @@ def _rooms(data: Path) -> list[Path]:
     return sorted(p for p in data.iterdir() if (p / "gt.json").is_file())
 
 
-def cuboid_vs_outline(data: Path, rooms: int = 60, min_visible: int = 3000) -> dict[str, tuple[int, float, float]]:
-    """Per class: (objects, median relative camera-height error with the cuboid, with the outline)."""
+def cuboid_vs_outline(data: Path, rooms: int = 60, min_visible: int = 3000) -> dict[str, tuple[int, np.ndarray]]:
+    """Per class: (objects, (3, N) relative camera-height errors with the cuboid, the hull and the mesh outline)."""
     lib = builtin_library()
-    outlines: dict[str, np.ndarray] = {}
-    errs: dict[str, list[tuple[float, float]]] = defaultdict(list)
+    outlines: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    errs: dict[str, list[list[float]]] = defaultdict(list)
     for room in _rooms(data)[:rooms]:
         gt = json.loads((room / "gt.json").read_text())
         h, w, hh = gt["camera_height_m"], gt["image"]["width"], gt["image"]["height"]
@@ -56,15 +57,13 @@ def cuboid_vs_outline(data: Path, rooms: int = 60, min_visible: int = 3000) -> d
             if o["bbox_pano"] is None or o["visible_px"] < min_visible * (w * hh) / (1024 * 512):
                 continue
             if o["model"] not in outlines:
-                outlines[o["model"]] = hull_outline(lib[o["model"]].vertices)
+                m = lib[o["model"]]
+                outlines[o["model"]] = (hull_outline(m.vertices), mesh_outline(m.vertices, m.faces))
             yaw = np.radians(o["yaw_deg"])
-            plain = DetectedObject(o["class"], o["bbox_pano"], o["size"], yaw)
-            outl = DetectedObject(o["class"], o["bbox_pano"], o["size"], yaw, outline=outlines[o["model"]])
-            a = initialise_objects([plain], w, hh).fitted_camera_heights[0]
-            b = initialise_objects([outl], w, hh).fitted_camera_heights[0]
-            errs[o["class"]].append((a / h - 1, b / h - 1))
-    return {c: (len(v), float(np.median([e[0] for e in v])), float(np.median([e[1] for e in v])))
-            for c, v in errs.items()}
+            dets = [DetectedObject(o["class"], o["bbox_pano"], o["size"], yaw, outline=ol)
+                    for ol in (None, *outlines[o["model"]])]
+            errs[o["class"]].append([d / h - 1 for d in initialise_objects(dets, w, hh).fitted_camera_heights])
+    return {c: (len(v), np.array(v).T) for c, v in errs.items()}
 
 
 def run_breakdown(data: Path, run: Path) -> dict:
@@ -148,12 +147,15 @@ def main(argv: list[str] | None = None) -> int:
     lines = [SECTION, "",
              f"`.venv/bin/python benchmarks/eval_scale.py {args.data} {args.run} --update-docs` (this section is "
              "written by the script; see its docstring).", "",
-             "Camera height of single objects from their gt box, true model and yaw (median relative error):", "",
-             "| class | objects | cuboid | hull outline |", "|---|---:|---:|---:|"]
+             "Camera height of single objects from their gt box, true model and yaw (median relative error, and the 90th "
+             "percentile of its absolute value):", "",
+             "| class | objects | cuboid | hull outline | mesh outline | hull, 90th percentile of abs. error "
+             "| mesh, 90th percentile |", "|---|---:|---:|---:|---:|---:|---:|"]
     for c in CLASSES:
         if c in bias:
-            n, a, b = bias[c]
-            lines.append(f"| {c} | {n} | {a:+.1%} | {b:+.1%} |")
+            n, e = bias[c]
+            med, p90 = np.median(e, axis=1), np.percentile(np.abs(e), 90, axis=1)
+            lines.append(f"| {c} | {n} | {med[0]:+.1%} | {med[1]:+.1%} | {med[2]:+.1%} | {p90[1]:.1%} | {p90[2]:.1%} |")
     ci, cf = br["cam_init"], br["cam_final"]
     lines += ["", f"Camera height of the run ({len(ci)} rooms): median error {np.median(ci):+.1%} at initialisation "
               f"(mean absolute {np.mean(np.abs(ci)):.1%}), {np.median(cf):+.1%} after sampling (mean absolute "

@@ -9,7 +9,6 @@ import json
 import os
 import shutil
 import signal
-import time
 from pathlib import Path
 
 import pytest
@@ -178,14 +177,13 @@ def test_local_batch_isolates_failures(local_run, panos):
     assert _partials(out) == []
 
 
-def test_rerun_skips_complete_items_fast(local_run, panos):
+def test_rerun_skips_complete_items(local_run, panos):
+    """A rerun leaves complete items' files alone and lists them as skipped (only the corrupt input runs again)."""
     out, _, first = local_run
     stamps = {p: p.stat().st_mtime_ns for p in out.glob("*/scene.json")}
-    t = time.perf_counter()
     code = main(["batch", str(panos), "--out", str(out), *FAST])
-    seconds = time.perf_counter() - t
     rows = _index(out / "index.csv")
-    assert code == 3 and seconds < 2.0
+    assert code == 3
     assert sum(r["status"] == "skipped" for r in rows) == 10
     assert {p: p.stat().st_mtime_ns for p in out.glob("*/scene.json")} == stamps
     strip = ("status", "seconds")

@@ -286,6 +286,48 @@ def test_outline_removes_the_cuboid_bias_of_a_narrow_base():
         DetectedObject("plant", box, size, 0.0, outline=np.zeros((2, 3)))
 
 
+def _cuboids(boxes) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (8 K, 3) and triangles (12 K, 3) of K axis-aligned cuboids ``(x0, y0, z0, x1, y1, z1)``."""
+    quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    verts, faces = [], []
+    for k, (x0, y0, z0, x1, y1, z1) in enumerate(boxes):
+        verts += [[x, y, z] for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)]
+        faces += [[8 * k + q[i] for i in t] for q in quads for t in ((0, 1, 2), (0, 2, 3))]
+    return np.array(verts, float), np.array(faces)
+
+
+def test_mesh_outline_follows_the_legs_where_the_hull_spans_the_gap():
+    """A bed on four legs seen from near its foot: the hull's lowest edge runs along the floor between the
+    legs, below what the image shows, and puts the camera too low (1.42 m for 1.5); the mesh outline does not."""
+    from layout.sampler import hull_outline, mesh_outline
+    from panogeom.coords import world_to_pixel
+
+    legs = [(sx * 0.95 - 0.05, sy * 0.75 - 0.05, 0.0, sx * 0.95 + 0.05, sy * 0.75 + 0.05, 0.3)
+            for sx in (-1, 1) for sy in (-1, 1)]
+    v, f = _cuboids(legs + [(-1.0, -0.8, 0.3, 1.0, 0.8, 0.6)])
+    cam, at = 1.5, np.array([1.9, 0.2, 0.0])  # its foot (+x, turned to face the camera) 0.9 m away
+    rot = np.array([[-1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0]])
+    # the image extent of the surface: the mesh's edges sampled every 5 mm (a face's extremes lie on its edges)
+    e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+    t = np.linspace(0.0, 1.0, 401)[:, None, None]
+    dense = (v[e[:, 0]] + t * (v[e[:, 1]] - v[e[:, 0]])).reshape(-1, 3)
+    uv = world_to_pixel(dense @ rot.T + at, 1024, 512, camera_height=cam)
+    box = [uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()]
+    size = [2.0, 1.6, 0.6]
+    fits = {}
+    for name, outline in (("hull", hull_outline(v)), ("mesh", mesh_outline(v, f))):
+        assert len(outline) <= 400
+        det = DetectedObject("bed", box, size, np.pi, outline=outline)
+        fits[name] = initialise_objects([det], 1024, 512).fitted_camera_heights[0]
+    assert abs(fits["hull"] - cam) > 0.03  # the bias the mesh outline is for
+    assert fits["mesh"] == pytest.approx(cam, abs=0.005)
+    assert len(mesh_outline(v, f, max_points=10)) == 10
+    for bad in ({"faces": f[:, :2]}, {"faces": f + 100}, {"vertices": v[:3]}, {"spacing": 0.0}):
+        kw = {"vertices": v, "faces": f, **bad}
+        with pytest.raises(ValueError):
+            mesh_outline(**kw)
+
+
 def test_box_scale_and_fixed_sampled_scale():
     """box_scale gives the improved initialisation's scale; sample_scale=False keeps it through the sampling."""
     from layout.sampler import box_scale

@@ -1,0 +1,92 @@
+"""How well an outline predicts a library model's image extent: the convex hull against the mesh outline.
+
+Run::
+
+    .venv/bin/python benchmarks/eval_outline.py [--views 200] [--points 100]
+
+For every model of the builtin library, the image extent (leftmost, rightmost, highest and lowest pixel of a
+1024x512 panorama) of its convex hull's points (:func:`layout.sampler.hull_outline`, 400 points) and of its mesh
+outline (:func:`layout.sampler.mesh_outline`, ``--points`` points: the model choice's budget) is compared with
+that of the whole surface (the mesh's edges sampled every centimetre: a face's extreme point from a camera lies on
+its boundary), from ``--views`` random viewpoints: camera 0.9-2.4 m above the floor, 0.2-5 m outside the
+footprint's bounding circle, any azimuth. Printed per class: the mean and the largest pixel error over the models
+and views, and the seconds :func:`~layout.sampler.mesh_outline` takes per model.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections import defaultdict
+
+import numpy as np
+
+from layout.sampler import hull_outline, mesh_outline
+from panogeom.coords import world_to_pixel
+from posecrf.library import builtin_library
+
+W, H = 1024, 512
+
+
+def _surface(vertices: np.ndarray, faces: np.ndarray, spacing: float = 0.01) -> np.ndarray:
+    """The mesh's edges sampled every ``spacing`` metres, in the outline's frame (centred footprint, z from base)."""
+    v = np.asarray(vertices, dtype=np.float64)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    v = v - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    f = np.asarray(faces)
+    e = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    a, b = v[e[:, 0]], v[e[:, 1]]
+    n = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) / spacing).astype(int), 1)
+    t = np.concatenate([np.arange(k + 1) / k for k in n])
+    i = np.repeat(np.arange(len(e)), n + 1)
+    return a[i] + t[:, None] * (b[i] - a[i])
+
+
+def _extent(points: np.ndarray, offset: np.ndarray, cam: float) -> np.ndarray:
+    """(4,) left, top, right, bottom pixel of ``points`` moved by ``offset``, seen from ``cam`` m up."""
+    p = points + offset
+    uv = world_to_pixel(p, W, H, camera_height=cam)
+    # columns relative to the object's direction (no seam inside an object's extent)
+    rel = np.angle(np.exp(1j * (np.arctan2(p[:, 1], p[:, 0]) - np.arctan2(offset[1], offset[0]))))
+    u = rel * W / (2 * np.pi)
+    return np.array([u.min(), uv[:, 1].min(), u.max(), uv[:, 1].max()])
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--views", type=int, default=200, help="random viewpoints per model")
+    ap.add_argument("--points", type=int, default=100, help="mesh outline budget (the model choice's is 100)")
+    args = ap.parse_args(argv)
+
+    rng = np.random.default_rng(0)
+    err: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    seconds: dict[str, list[float]] = defaultdict(list)
+    for m in builtin_library():
+        t0 = time.perf_counter()
+        mesh = mesh_outline(m.vertices, m.faces, max_points=args.points)
+        seconds[m.cls].append(time.perf_counter() - t0)
+        hull = hull_outline(m.vertices)
+        surf = _surface(m.vertices, m.faces)
+        reach = 0.5 * float(np.hypot(*m.size[:2]))
+        for _ in range(args.views):
+            cam = rng.uniform(0.9, 2.4)
+            d, az = reach + rng.uniform(0.2, 5.0), rng.uniform(0.0, 2 * np.pi)
+            off = np.array([d * np.cos(az), d * np.sin(az), 0.0])
+            ref = _extent(surf, off, cam)
+            for name, pts in (("hull", hull), ("mesh", mesh)):
+                err[m.cls][name].append(float(np.abs(_extent(pts, off, cam) - ref).max()))
+    print(f"{args.views} random views per model, {W}x{H}; largest of the four edges' errors, pixels")
+    print("| class | models | hull: mean / max px | mesh outline: mean / max px | mesh outline s per model |")
+    print("|---|---:|---:|---:|---:|")
+    for c in sorted(err):
+        h, m_ = np.array(err[c]["hull"]), np.array(err[c]["mesh"])
+        print(f"| {c} | {len(seconds[c])} | {h.mean():.2f} / {h.max():.1f} | {m_.mean():.2f} / {m_.max():.1f} | "
+              f"{np.mean(seconds[c]):.3f} |")
+    h = np.concatenate([np.array(e["hull"]) for e in err.values()])
+    m_ = np.concatenate([np.array(e["mesh"]) for e in err.values()])
+    print(f"| all | {sum(len(s) for s in seconds.values())} | {h.mean():.2f} / {h.max():.1f} | "
+          f"{m_.mean():.2f} / {m_.max():.1f} | {np.mean(np.concatenate(list(seconds.values()))):.3f} |")
+
+
+if __name__ == "__main__":
+    main()
