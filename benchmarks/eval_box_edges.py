@@ -7,7 +7,8 @@ Run::
 
 For every object of the set with at least 2000 visible pixels that the builtin detector finds (same class,
 panorama-box IoU > 0.5 with its gt box), the four box edges are compared with the object's TRUE model outline
-(:func:`layout.sampler.hull_outline`) at its true position, yaw and camera height, two ways:
+(:func:`layout.sampler.mesh_outline`, as in the pipeline; before session 28 the convex hull) at its true
+position, yaw and camera height, two ways:
 
 * as great circles (planes through the camera; :meth:`detect.detection.TileBox.edge_planes`): the angle by which
   the outline's extreme point lies inside each plane (0: the box edge touches the object); edges at the tile
@@ -48,7 +49,7 @@ def measure(data: Path, rooms: int, min_visible: int = 2000) -> dict[str, dict[s
     from detect.nms import pano_box_iou
     from detect.grabcut import silhouette_box
     from detect.tiles import detect_panorama
-    from layout.sampler import DetectedObject, _BoxEdges, hull_outline
+    from layout.sampler import DetectedObject, _BoxEdges, mesh_outline
     from posecrf.library import builtin_library
 
     lib = builtin_library()
@@ -74,7 +75,7 @@ def measure(data: Path, rooms: int, min_visible: int = 2000) -> dict[str, dict[s
                 continue
             d = same[int(np.argmax(iou))]
             if o["model"] not in outlines:
-                outlines[o["model"]] = hull_outline(lib[o["model"]].vertices)
+                outlines[o["model"]] = mesh_outline(lib[o["model"]].vertices, lib[o["model"]].faces)
             yaw = np.radians(o["yaw_deg"])
             xy = np.array(o["center"], float)[None, None, :2]
             sets = d.edge_planes()
