@@ -620,8 +620,9 @@ def mesh_outline(vertices: ArrayLike, faces: ArrayLike, spacing: float = 0.05, m
     looks = -cams[:, :2] / np.linalg.norm(cams[:, :2], axis=1, keepdims=True)  # towards the footprint's centre
     pts = cand.astype(np.float32)
     votes = np.zeros(len(cand), dtype=np.int64)
-    for c0 in range(0, len(cams), 128):
-        cam, look = cams[c0:c0 + 128].astype(np.float32), looks[c0:c0 + 128].astype(np.float32)
+    chunk = max(1, min(128, 4_000_000 // len(cand)))  # viewpoints per pass: (chunk, M) arrays of 16 MB at most
+    for c0 in range(0, len(cams), chunk):
+        cam, look = cams[c0:c0 + chunk].astype(np.float32), looks[c0:c0 + chunk].astype(np.float32)
         dx, dy, dz = (pts[None, :, i] - cam[:, None, i] for i in range(3))
         # every point lies in front of the camera (it is outside the bounding circle): tangents order the angles
         along = dx * look[:, None, 0] + dy * look[:, None, 1]
