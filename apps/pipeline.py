@@ -47,6 +47,7 @@ the input panorama's pixels.
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from dataclasses import dataclass, field, replace
@@ -245,18 +246,60 @@ def _object_mask(dets: list, shape: tuple[int, int]) -> np.ndarray:
 
 
 def _outline(model, max_points: int = 400) -> np.ndarray:
-    """Object-frame outline points of a library model (:func:`layout.sampler.mesh_outline`, cached per model id
-    and size) for the box fits; the model choice fits every candidate with a lighter outline (``max_points=100``,
+    """Object-frame outline points of a library model (:func:`layout.sampler.mesh_outline`, kept per process and
+    on disk) for the box fits; the model choice fits every candidate with a lighter outline (``max_points=100``,
     the first rows of the full one)."""
-    key = (model.id, len(model.vertices), tuple(float(v) for v in model.size))
+    key = (model.id, model.content_hash())
     if key not in _OUTLINES:
-        from layout.sampler import mesh_outline
-
-        _OUTLINES[key] = mesh_outline(model.vertices, model.faces, max_points=400)
+        _OUTLINES[key] = _stored_outline(model)
     return _OUTLINES[key][:max_points]
 
 
 _OUTLINES: dict[tuple, np.ndarray] = {}
+
+
+@functools.lru_cache(maxsize=1)
+def _sampler_source_hash() -> str:
+    """SHA-256 of the source of :mod:`layout.sampler` (where :func:`~layout.sampler.mesh_outline` lives)."""
+    import hashlib
+    from pathlib import Path
+
+    import layout.sampler
+
+    return hashlib.sha256(Path(layout.sampler.__file__).read_bytes()).hexdigest()
+
+
+def _stored_outline(model) -> np.ndarray:
+    """:func:`layout.sampler.mesh_outline` of a model (400 points), stored in the model-library cache folder
+    (:func:`posecrf.cache.default_cache_dir`, ``outlines/``) under the model's content hash and the source of
+    :mod:`layout.sampler`, so that a later run loads it (0.1-0.9 s per model to compute,
+    ``benchmarks/eval_outline.py``). A cache folder that cannot be read or written only costs the computation."""
+    import hashlib
+    import io
+
+    from layout.sampler import mesh_outline
+    from posecrf.cache import default_cache_dir
+
+    from .atomic import write_bytes
+
+    h = hashlib.sha256(model.content_hash().encode())
+    h.update(_sampler_source_hash().encode())
+    path = default_cache_dir() / "outlines" / f"{model.id}-{h.hexdigest()[:16]}.npy"
+    try:
+        pts = np.load(path)
+        if pts.ndim == 2 and pts.shape[1] == 3 and len(pts) and np.isfinite(pts).all():
+            return pts
+    except (OSError, ValueError, EOFError):
+        pass
+    pts = mesh_outline(model.vertices, model.faces, max_points=400)
+    buf = io.BytesIO()
+    np.save(buf, pts)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_bytes(path, buf.getvalue())
+    except OSError:
+        pass
+    return pts
 
 _EO_BINS = np.arange(72) * (2.0 * np.pi / 72)
 

@@ -572,16 +572,16 @@ def select_models(candidates: Sequence[Sequence[DetectedObject]], width: int, he
     def totals(hs: FloatArray, sel: NDArray[np.int64], edges: _BoxEdges) -> tuple[FloatArray, list[FloatArray]]:
         """Total cost at each height and the (N, M_max) cost matrices, candidates ``sel`` (their ``edges``)."""
         prof, costs = np.zeros(len(hs)), []
+        yaw_s, size_s, cen_s, free_s, b = yaw_flat[sel], size2_flat[sel], centers[sel], free_h[sel], backed[sel]
         for k, hk in enumerate(hs):
             cost = np.full((n, m_max), np.inf)
-            fit, xy = _misfit(edges, yaw_flat[sel], centers[sel], free_h[sel], float(hk), edge_sigma)
-            b = backed[sel]
+            fit, xy = _misfit(edges, yaw_s, cen_s, free_s, float(hk), edge_sigma)
             if use_room or b.any():
                 floor_h = floor * (float(hk) / float(floor_camera_height))
             if use_room:
-                fit = fit + room_weight * room_misfit(xy, yaw_flat[sel], size2_flat[sel], floor_h, room_sigma)
+                fit = fit + room_weight * room_misfit(xy, yaw_s, size_s, floor_h, room_sigma)
             if b.any():
-                fit[b] += gap_weight * wall_gap(xy[b], yaw_flat[sel][b], size2_flat[sel][b, 0], floor_h, gap_sigma)
+                fit[b] += gap_weight * wall_gap(xy[b], yaw_s[b], size_s[b, 0], floor_h, gap_sigma)
             cost[owner[sel], slot[sel]] = fit + a_flat[sel]
             prof[k] = cost.min(axis=1).sum() + prior(float(hk))
             costs.append(cost)

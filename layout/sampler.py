@@ -510,14 +510,11 @@ def hull_outline(vertices: ArrayLike, spacing: float = 0.03, max_points: int = 4
     """
     from scipy.spatial import ConvexHull
 
-    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
-    lo, hi = v.min(axis=0), v.max(axis=0)
-    v = v - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+    v = _outline_frame(np.asarray(vertices, dtype=np.float64).reshape(-1, 3))
     hull = ConvexHull(v, qhull_options="QJ")
     pts = v[hull.vertices]
     # edges of the hull's facets, merged coplanar triangles included (their diagonals add points, harmlessly)
-    tri = hull.simplices
-    edges = np.unique(np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1), axis=0)
+    edges = _triangle_edges(hull.simplices)
     a, b = v[edges[:, 0]], v[edges[:, 1]]
     length = np.linalg.norm(b - a, axis=1)
     while True:
@@ -525,10 +522,25 @@ def hull_outline(vertices: ArrayLike, spacing: float = 0.03, max_points: int = 4
         if len(pts) + k.sum() <= max_points or spacing > 10.0:
             break
         spacing *= 1.5
+    return np.concatenate([pts, _points_along(a, b, k)])
+
+
+def _outline_frame(v: FloatArray) -> FloatArray:
+    """Vertices (V, 3) moved into the outline frame: footprint centred in x and y, z from the base."""
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    return v - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+
+
+def _triangle_edges(tri: NDArray[np.integer]) -> NDArray[np.integer]:
+    """The distinct edges (E, 2) of triangles (T, 3) of vertex indices, lower index first."""
+    return np.unique(np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1), axis=0)
+
+
+def _points_along(a: FloatArray, b: FloatArray, k: NDArray[np.integer]) -> FloatArray:
+    """``k[i]`` points evenly inside each segment ``a[i]``-``b[i]`` (endpoints excluded): (sum k, 3)."""
     t = np.concatenate([np.arange(1, n + 1) / (n + 1) for n in k]) if k.sum() else np.zeros(0)
-    e = np.repeat(np.arange(len(edges)), k)
-    inner = a[e] + t[:, None] * (b[e] - a[e])
-    return np.concatenate([pts, inner])
+    e = np.repeat(np.arange(len(a)), k)
+    return a[e] + t[:, None] * (b[e] - a[e])
 
 
 #: Camera heights above an object's base, metres, and distances from its footprint's bounding circle, metres, of
@@ -547,7 +559,9 @@ def mesh_outline(vertices: ArrayLike, faces: ArrayLike, spacing: float = 0.05, m
     model: between a bed's or a sofa's legs its hull's lowest edge runs along
     the floor where the image shows floor, so a bed seen from near its foot
     is predicted lower than its box (up to 24 px at 1024 wide) and the box
-    fit pulls it away from the camera. Here the candidates are the
+    fit pulls it away from the camera; and at a small budget its points
+    along long edges are far apart and miss a near bed's lowest point. Here
+    the candidates are the
     mesh's vertices and points every ``spacing`` metres along its edges (a
     face's extreme point from a camera lies on its boundary); each of
     768 viewpoints around the model (camera 0.8-2.6 m above its base,
@@ -557,8 +571,8 @@ def mesh_outline(vertices: ArrayLike, faces: ArrayLike, spacing: float = 0.05, m
     From random viewpoints in the same range the image extent of the kept
     points of the builtin library's models is within 1.4 px (1024 wide) of
     that of the whole surface with ``max_points=100``; the convex hull's is
-    off by up to 24 px (``benchmarks/eval_outline.py``). 0.01-0.05 s per
-    model.
+    off by up to 24 px (``benchmarks/eval_outline.py``). 0.1-0.9 s per
+    model (the pipeline stores the outlines of its library models on disk).
 
     Parameters
     ----------
@@ -604,31 +618,23 @@ def mesh_outline(vertices: ArrayLike, faces: ArrayLike, spacing: float = 0.05, m
         raise ValueError(f"faces: expected (F >= 1, 3) vertex indices below {len(v)}, got shape {f.shape}")
     if not spacing > 0 or int(max_points) < 1:
         raise ValueError(f"spacing and max_points: expected > 0 and >= 1, got {spacing!r} and {max_points!r}")
-    lo, hi = v.min(axis=0), v.max(axis=0)
-    v = v - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
-    edges = np.unique(np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1), axis=0)
+    v = _outline_frame(v)
+    edges = _triangle_edges(f)
     a, b = v[edges[:, 0]], v[edges[:, 1]]
     k = np.maximum(np.ceil(np.linalg.norm(b - a, axis=1) / spacing).astype(np.int64) - 1, 0)
-    t = np.concatenate([np.arange(1, n + 1) / (n + 1) for n in k]) if k.sum() else np.zeros(0)
-    e = np.repeat(np.arange(len(edges)), k)
-    cand = np.unique(np.round(np.concatenate([v, a[e] + t[:, None] * (b[e] - a[e])]), 6), axis=0)
-    half = 0.5 * math.hypot(hi[0] - lo[0], hi[1] - lo[1])
+    cand = np.unique(np.round(np.concatenate([v, _points_along(a, b, k)]), 6), axis=0)
+    half = float(np.hypot(*np.abs(v[:, :2]).max(axis=0)))  # radius of the footprint's bounding circle
     az = np.arange(_OUTLINE_AZIMUTHS) * (2 * np.pi / _OUTLINE_AZIMUTHS)
     hs, ds, azs = np.meshgrid(np.array(_OUTLINE_VIEW_HEIGHTS), half + np.array(_OUTLINE_VIEW_DISTANCES), az,
                               indexing="ij")
     cams = np.stack([(ds * np.cos(azs)).ravel(), (ds * np.sin(azs)).ravel(), hs.ravel()], axis=1)
-    looks = -cams[:, :2] / np.linalg.norm(cams[:, :2], axis=1, keepdims=True)  # towards the footprint's centre
-    pts = cand.astype(np.float32)
+    centre_lon = ray_to_lonlat(np.column_stack([-cams[:, :2], np.zeros(len(cams))]))[:, 0]  # towards the model
     votes = np.zeros(len(cand), dtype=np.int64)
-    chunk = max(1, min(128, 4_000_000 // len(cand)))  # viewpoints per pass: (chunk, M) arrays of 16 MB at most
+    chunk = max(1, min(128, 2_000_000 // len(cand)))  # viewpoints per pass: (chunk, M, 3) arrays of 48 MB at most
     for c0 in range(0, len(cams), chunk):
-        cam, look = cams[c0:c0 + chunk].astype(np.float32), looks[c0:c0 + chunk].astype(np.float32)
-        dx, dy, dz = (pts[None, :, i] - cam[:, None, i] for i in range(3))
-        # every point lies in front of the camera (it is outside the bounding circle): tangents order the angles
-        along = dx * look[:, None, 0] + dy * look[:, None, 1]
-        side = (dy * look[:, None, 0] - dx * look[:, None, 1]) / along
-        up = dz / np.sqrt(dx * dx + dy * dy)
-        for idx in (side.argmin(axis=1), side.argmax(axis=1), up.argmin(axis=1), up.argmax(axis=1)):
+        lonlat = ray_to_lonlat(cand[None] - cams[c0:c0 + chunk, None])  # (chunk, M, 2)
+        rel = _wrap(lonlat[..., 0] - centre_lon[c0:c0 + chunk, None])
+        for idx in (rel.argmin(axis=1), rel.argmax(axis=1), lonlat[..., 1].argmin(axis=1), lonlat[..., 1].argmax(axis=1)):
             votes += np.bincount(idx, minlength=len(cand))
     keep = np.flatnonzero(votes)
     return cand[keep[np.argsort(-votes[keep], kind="stable")][:int(max_points)]]
