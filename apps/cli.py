@@ -29,6 +29,13 @@ def _fmt():
     return argparse.ArgumentDefaultsHelpFormatter
 
 
+#: Seed of ``pano2cad demo``'s room: room 0 of seed 1 is a U-shaped room (8 corners) with a bed, a sofa, a TV, a
+#: wardrobe, two chairs and a plant. Until session 29 it was seed 0, whose room 0 has the camera beside a wardrobe
+#: that fills a quarter of the view; the detector kept no object there and the demo showed an empty room
+#: (docs/EVALUATION.md, "Session 29").
+DEMO_SEED = 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog=PROG, description="One 360-degree indoor panorama to a CAD model of the room.",
                 formatter_class=_fmt())
@@ -38,7 +45,8 @@ def build_parser() -> argparse.ArgumentParser:
     d = sub.add_parser("demo", help="run the toolkit on an embedded generated panorama into out/demo/",
                        formatter_class=_fmt())
     d.add_argument("--out", default="out/demo", help="output folder")
-    d.add_argument("--seed", type=int, default=0, help="random seed of the generated room")
+    d.add_argument("--seed", type=int, default=DEMO_SEED,
+                   help="random seed of the generated room (and of the pipeline's sampler)")
     d.add_argument("--size", type=int, default=1024, help="panorama width in pixels")
     d.add_argument("--quiet", action="store_true", help="no progress on stderr")
 

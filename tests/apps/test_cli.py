@@ -59,3 +59,20 @@ def test_views_writes_cubemap_and_views(tmp_path, capsys):
 def test_views_bad_fov(tmp_path):
     Image.fromarray(np.zeros((64, 128, 3), np.uint8)).save(tmp_path / "p.png")
     assert main(["views", str(tmp_path / "p.png"), "--out", str(tmp_path / "o"), "--fov-deg", "180"]) == 2
+
+
+def test_demo_shows_a_room_with_objects(tmp_path, capsys):
+    """`make demo` runs this: the default room must show what the toolkit does (a room with its furniture), end
+    with the summary and the files, and write a complete scene.json."""
+    import json
+
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "against the ground truth: 3D IoU" in text and f"files written to {out}" in text
+    scene = json.loads((out / "scene.json").read_text())
+    gt = json.loads((out / "input" / "gt.json").read_text())
+    assert len(scene["objects"]) >= 3 and len(gt["objects"]) >= 3
+    assert len(scene["room"]["floor"]) >= 4
+    for name in ("scene.glb", "floorplan.png", "overlay.png", "report.html"):
+        assert (out / name).stat().st_size > 0
