@@ -1,5 +1,6 @@
 """The command line: help, usage errors and bad input exit 2 with one line, never a traceback."""
 
+import json
 import subprocess
 import sys
 
@@ -64,8 +65,6 @@ def test_views_bad_fov(tmp_path):
 def test_demo_shows_a_room_with_objects(tmp_path, capsys):
     """`make demo` runs this: the default room must show what the toolkit does (a room with its furniture), end
     with the summary and the files, and write a complete scene.json."""
-    import json
-
     out = tmp_path / "demo"
     assert main(["demo", "--out", str(out), "--quiet"]) == 0
     text = capsys.readouterr().out
