@@ -23,8 +23,8 @@ from collections import defaultdict
 
 import numpy as np
 
-from layout.sampler import _outline_frame, _points_along, _triangle_edges, hull_outline, mesh_outline
-from panogeom.coords import world_to_pixel
+from layout.sampler import _outline_frame, _points_along, _triangle_edges, _wrap, hull_outline, mesh_outline
+from panogeom.coords import world_to_pixel, xy_to_lon
 from posecrf.library import builtin_library
 
 W, H = 1024, 512
@@ -43,8 +43,7 @@ def _extent(points: np.ndarray, offset: np.ndarray, cam: float) -> np.ndarray:
     p = points + offset
     uv = world_to_pixel(p, W, H, camera_height=cam)
     # columns relative to the object's direction (no seam inside an object's extent)
-    rel = np.angle(np.exp(1j * (np.arctan2(p[:, 1], p[:, 0]) - np.arctan2(offset[1], offset[0]))))
-    u = rel * W / (2 * np.pi)
+    u = _wrap(xy_to_lon(p[:, :2]) - xy_to_lon(offset[:2])) * W / (2 * np.pi)
     return np.array([u.min(), uv[:, 1].min(), u.max(), uv[:, 1].max()])
 
 
