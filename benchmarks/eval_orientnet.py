@@ -2,8 +2,8 @@
 
 Run::
 
-    pano2cad synth --rooms 800 --seed 3000 --size 1024 --out out/train3000
-    .venv/bin/python benchmarks/eval_orientnet.py held-out out/train3000 --first 720 --last 800 WEIGHTS.pt [...]
+    pano2cad synth --rooms 1600 --seed 3000 --size 1024 --out out/train3000
+    .venv/bin/python benchmarks/eval_orientnet.py held-out out/train3000 --first 1440 --last 1600 WEIGHTS.pt [...]
     pano2cad synth --rooms 30 --seed 7000 --size 1024 --out out/tune7000
     .venv/bin/python benchmarks/eval_orientnet.py vs-hog out/tune7000 WEIGHTS.pt --weights 0 0.05 0.1 0.2 0.5
 
