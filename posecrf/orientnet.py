@@ -20,12 +20,13 @@ head. ``p`` over the bins is interpolated linearly (on the circle) between
 bin centres. At test time :meth:`OrientationNet.probabilities` averages each
 crop's distribution with its left-right mirror's, the mirror's yaws mapped
 back (:func:`mirror_average`, ``mirror=True`` by default): the training
-mirrors crops at random, and the average is right more often (gt boxes,
-``benchmarks/eval_orientnet.py held-out``: chairs within 45 deg, crop alone
--> averaged, on tuning seeds 7000 / 8000 93 / 86 % -> 95 / 93 % with the
-session-24 weights, docs/EVALUATION.md, "Session 24"; with the committed
-weights, trained on twice the rooms in session 30, 98 / 92 % -> 93 / 94 %,
-and 91 % -> 92 % on 160 rooms none of them was trained on).
+mirrors crops at random, and the average is right more often on the whole
+(gt boxes, ``benchmarks/eval_orientnet.py held-out``: chairs within 45 deg,
+crop alone -> averaged, on tuning seeds 7000 / 8000 93 / 86 % -> 95 / 93 %
+with the session-24 weights, docs/EVALUATION.md, "Session 24"; with the
+committed weights, trained on twice the rooms in session 30, 98 / 92 % ->
+93 / 94 %, the first worse, and 91 % -> 92 % on 160 rooms none of them was
+trained on).
 
 Convention: crop-relative yaw of :mod:`posecrf.crops` (direction object ->
 camera in the object's frame, counter-clockwise from its front, radians);
