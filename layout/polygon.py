@@ -38,6 +38,7 @@ __all__ = [
     "outside_fraction",
     "has_repeated_vertex",
     "is_manhattan",
+    "wall_direction",
     "is_simple",
     "polygon_problems",
     "validate_floor_polygon",
@@ -760,6 +761,38 @@ def has_repeated_vertex(polygon: ArrayLike, *, tol: float = 1e-9) -> bool:
     d = np.sqrt(np.sum((p[:, None, :] - p[None, :, :]) ** 2, axis=-1))
     iu = np.triu_indices(len(p), k=1)
     return bool(np.any(d[iu] <= tol))
+
+
+def wall_direction(polygon: ArrayLike) -> float:
+    """The direction of a Manhattan polygon's walls, modulo 90 degrees.
+
+    The length-weighted circular mean of the edge angles on the circle of
+    period 90 degrees (edges along x and along y count alike), so a polygon
+    whose walls are rotated by ``t`` from the axes gives ``t``.
+
+    Parameters
+    ----------
+    polygon : (N, 2) float
+
+    Returns
+    -------
+    float
+        Radians in ``[-pi/4, pi/4)``; the walls run along this angle and the
+        angle plus 90 degrees.
+
+    >>> round(wall_direction([[0, 0], [2, 0], [2, 1], [0, 1]]), 6) + 0.0
+    0.0
+    >>> c, s = np.cos(0.2), np.sin(0.2)
+    >>> round(wall_direction(np.array([[0, 0], [2, 0], [2, 1], [0, 1]]) @ [[c, s], [-s, c]]), 6)
+    0.2
+    """
+    p = as_polygon(polygon)
+    if p.ndim != 2:
+        raise ValueError(f"expected a single polygon (N, 2), got {p.shape}")
+    e = np.roll(p, -1, axis=0) - p
+    z = np.sum(np.hypot(e[:, 0], e[:, 1]) * np.exp(4j * np.arctan2(e[:, 1], e[:, 0])))
+    t = float(np.angle(z)) / 4.0 if abs(z) > 0 else 0.0
+    return float((t + np.pi / 4) % (np.pi / 2) - np.pi / 4)
 
 
 def is_manhattan(polygon: ArrayLike, *, tol: float = 1e-6, axis_aligned: bool = False) -> bool:

@@ -24,6 +24,7 @@ from layout.polygon import (
     project_to_segments,
     signed_area,
     validate_floor_polygon,
+    wall_direction,
     wall_segments,
 )
 
@@ -300,3 +301,25 @@ def test_outside_fraction_margin_and_errors():
         outside_fraction(touching, L_SHAPE, margin=-1.0)
     with pytest.raises(ValueError, match="samples"):
         outside_fraction(touching, L_SHAPE, samples=0)
+
+
+@pytest.mark.parametrize("shape", [L_SHAPE, U_SHAPE], ids=["L", "U"])
+@pytest.mark.parametrize("turn_deg", [0.0, 10.0, 44.0, -30.0, 90.0, 135.0])
+def test_wall_direction_of_turned_polygons(shape, turn_deg):
+    t = np.radians(turn_deg)
+    c, s = np.cos(t), np.sin(t)
+    turned = (shape - [1.0, 2.0]) @ np.array([[c, s], [-s, c]])
+    got = wall_direction(turned)
+    assert -np.pi / 4 <= got < np.pi / 4
+    want = (t + np.pi / 4) % (np.pi / 2) - np.pi / 4
+    assert abs(got - want) < 1e-9
+    assert abs(wall_direction(turned[::-1]) - want) < 1e-9  # the orientation of the outline does not matter
+
+
+def test_wall_direction_weights_edges_by_length():
+    """A long wall off by 2 degrees and a short one off by -2: the mean leans to the long one."""
+    room = np.array([[0.0, 0.0], [10.0, 0.35], [10.0, 1.35], [0.0, 1.0]])  # 2 deg over 10 m; the short sides vertical
+    got = np.degrees(wall_direction(room))
+    assert 0.0 < got < 2.0
+    with pytest.raises(ValueError):
+        wall_direction(np.zeros((2, 3, 2)) + [[0, 0], [1, 0], [1, 1]])

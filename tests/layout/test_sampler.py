@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from layout.likelihood import observe_labels, render_scene_labels, surface_likelihood
 from layout.placement import ObjectSpec, place_objects
-from layout.polygon import convex_in_polygon
+from layout.polygon import convex_in_polygon, points_in_polygon
 from layout.context import pair_overlap_areas
 from layout.rooms import generate_room
 from layout.sampler import (
@@ -21,9 +21,13 @@ from layout.sampler import (
     SamplerConfig,
     camera_height_estimates,
     fit_boxes,
+    _Problem,
+    _snap_yaws,
     initialise_objects,
     map_estimate,
+    snap_to_walls,
 )
+from layout.likelihood import orientation_likelihood
 from panogeom.project import world_box_to_pano
 
 W = 512
@@ -520,3 +524,66 @@ def test_a_cut_edge_pulls_weakly_where_the_object_reaches_beyond_it():
         assert np.linalg.norm(got - center[:2]) < 0.03
     with pytest.raises(ValueError, match="cut_edges"):
         DetectedObject("chair", full, size, 0.0, cut_edges=[1, 0, 0, 0])
+
+
+def test_snap_to_walls_in_a_turned_room():
+    t = math.radians(20.0)
+    rot = np.array([[math.cos(t), math.sin(t)], [-math.sin(t), math.cos(t)]])
+    room = np.array([[0, 0], [4, 0], [4, 3], [2, 3], [2, 5], [0, 5]], float) @ rot
+    yaw = np.radians([20.0 + 4.0, 110.0 - 9.9, 20.0 + 45.0, 200.0 + 10.5, -70.0 + 0.1])
+    got = np.degrees(snap_to_walls(yaw, room, math.radians(10.0)))
+    assert np.allclose(got, [20.0, 110.0, 65.0, 210.5, -70.0])
+    assert np.array_equal(snap_to_walls(yaw, room, 0.0), yaw)
+
+
+def test_map_estimate_snaps_yaws_onto_the_walls():
+    """Pose estimates 6 degrees off the (axis-aligned) walls and an E_o that holds them there: with the snap the
+    asymmetric objects end square to the walls, without it they do not; the plant keeps its yaw."""
+    pl, labels, dets, floor0, ceil0 = synthetic(3, yaw_noise_deg=0.0)
+    dets = [d if d.symmetric else replace(d, yaw=round(d.yaw / (math.pi / 2)) * math.pi / 2 + math.radians(6.0))
+            for d in dets]
+    obs = observe_labels(labels, [d.bbox_pano for d in dets], width=256, object_pixels="matched")
+    lik = surface_likelihood(obs, floor0, ceil0, 1.6)
+    eo = [None if d.symmetric else (lambda y, m=d.yaw: 5.0 * (1.0 - np.cos(y - m))) for d in dets]
+
+    def off_axis_deg(snap):
+        cfg = SamplerConfig.improved(n_samples=300, snap_yaw_deg=snap)
+        res = map_estimate(lik, dets, image_width=W, image_height=W // 2, orientation=eo, config=cfg, rng=0)
+        check_valid(res.scene)
+        return [abs(math.degrees(math.remainder(o.yaw, math.pi / 2))) for o, d in zip(res.scene.objects, dets)
+                if not d.symmetric], res
+
+    assert SamplerConfig.improved().snap_yaw_deg == 10.0 and SamplerConfig().snap_yaw_deg == 0.0
+    free, _ = off_axis_deg(0.0)
+    assert max(free) > 2.0
+    snapped, res = off_axis_deg(10.0)
+    assert max(snapped) < 1e-9
+    plant = [o for o, d in zip(res.scene.objects, dets) if d.symmetric][0]
+    assert plant.yaw == pytest.approx(dets[[d.symmetric for d in dets].index(True)].yaw)
+    with pytest.raises(ValueError, match="snap_yaw_deg"):
+        SamplerConfig(snap_yaw_deg=50.0)
+
+
+def test_snap_keeps_a_yaw_whose_turn_would_overlap_a_neighbour():
+    """Two beds turned 8 degrees, side by side and touching: turning either onto the walls swings its corners
+    into the other, so only a snap that keeps the hypothesis valid is taken."""
+    pl, labels, dets, floor0, ceil0 = synthetic(3, yaw_noise_deg=0.0)
+    lik = surface_likelihood(observe_labels(labels, width=128), floor0, ceil0, 1.6)
+    bed = [d for d in dets if d.cls == "bed"][0]
+    beds = [replace(bed, id="a"), replace(bed, id="b")]
+    cfg = SamplerConfig.improved(keep_in_box=False)  # the boxes are the true bed's, not these two
+    prob = _Problem(lik, beds, orientation_likelihood(None, ["bed", "bed"]), cfg, W, W // 2)
+    t = math.radians(8.0)
+    across = np.array([-math.sin(t), math.cos(t)]) * (bed.size[1] + 1e-3)  # 1 mm apart along their widths
+    mid = np.array([-3.0, -1.2])  # well inside the 6.9 x 4.1 m room, 3.2 m from the camera
+    assert points_in_polygon(mid, floor0)
+    xy = np.array([mid - across / 2, mid + across / 2])
+    yaw = np.array([t, t])
+    assert prob.evaluate(np.array([1.0]), xy[None], yaw[None]).violation[0] == 0
+    both = yaw.copy()
+    both[:] = 0.0
+    assert prob.evaluate(np.array([1.0]), xy[None], both[None]).violation[0] > 0
+    got, evaluated = _snap_yaws(prob, 1.0, xy, yaw, math.radians(10.0))
+    assert evaluated == 2
+    assert prob.evaluate(np.array([1.0]), xy[None], got[None]).violation[0] == 0
+    assert np.count_nonzero(got != yaw) <= 1
