@@ -15,6 +15,8 @@ with the crop-relative yaw of the object (:func:`posecrf.crops.relative_yaw`
 along the crop's central ray). A crop mirrored left-right shows the object
 at minus that yaw (the furniture is left-right symmetric), which doubles the
 data at training time. The last ``--val-fraction`` of the rooms is held out
+(with several ``--rooms`` folders, the rooms are taken folder by folder in
+the order given, so the held-out rooms are the last folder's last ones)
 and scored at the end (median angular error of the most likely bin and the
 share within 45 degrees, per class).
 
@@ -158,7 +160,8 @@ def train(x: np.ndarray, cls: np.ndarray, yaw: np.ndarray, epochs: int, batch: i
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m posecrf.train_orientation", description=__doc__.split("\n")[0])
-    ap.add_argument("--rooms", required=True, help="folder of pano2cad synth rooms (room-*/pano.png, gt.json)")
+    ap.add_argument("--rooms", required=True, nargs="+", metavar="DIR",
+                    help="folders of pano2cad synth rooms (room-*/pano.png, gt.json), taken in the order given")
     ap.add_argument("--out", required=True, help="weights file to write (.pt); a .json record beside it")
     ap.add_argument("--val-fraction", type=float, default=0.1)
     ap.add_argument("--jitter", type=int, default=4, help="crops per object (the first with the exact box)")
@@ -173,9 +176,9 @@ def main(argv: list[str] | None = None) -> int:
     import torch
 
     torch.set_num_threads(max(1, torch.get_num_threads()))
-    rooms = sorted(p for p in Path(a.rooms).glob("room-*") if (p / "gt.json").is_file())
+    rooms = [p for d in a.rooms for p in sorted(Path(d).glob("room-*")) if (p / "gt.json").is_file()]
     if len(rooms) < 2:
-        print(f"error: no synthetic rooms under {a.rooms}", file=sys.stderr)
+        print(f"error: no synthetic rooms under {' '.join(a.rooms)}", file=sys.stderr)
         return 2
     n_val = max(1, int(round(len(rooms) * a.val_fraction)))
     rng = np.random.default_rng(a.seed)
@@ -196,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
         "weights_bytes": out.stat().st_size,
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "command": "python -m posecrf.train_orientation " + " ".join(sys.argv[1:] if argv is None else argv),
-        "rooms": {"folder": str(a.rooms), "train": len(rooms) - n_val, "val": n_val},
+        "rooms": {"folders": list(a.rooms), "train": len(rooms) - n_val, "val": n_val},
         "crops": {"train": int(len(x)), "val": int(len(xv))},
         "seconds": round(time.time() - t0, 1),
         "validation": val,

@@ -187,3 +187,31 @@ def test_training_learns_a_visible_cue():
         pred = net(torch.from_numpy(x))[:, cls[0]].argmax(dim=1).numpy() * (2 * math.pi / N_BINS)
     acc = np.mean([_ang(a, b) < math.radians(45) for a, b in zip(pred, yaw)])
     assert acc > 0.9
+
+
+def test_main_holds_out_the_last_folders_last_rooms(tmp_path):
+    """Several ``--rooms`` folders are read in the order given; the held-out rooms are the last folder's."""
+    from posecrf.train_orientation import main
+
+    gt = json.loads((ROOM / "gt.json").read_text())
+    png = tmp_path / "pano.png"
+    import cv2
+
+    cv2.imwrite(str(png), cv2.imread(str(ROOM / "pano.jpg")))
+    # given order z, a: a global sort by path would hold out z's room instead
+    for folder, keep in (("z", ("bed", "chair", "sofa", "tv")), ("a", ("tv",))):
+        room = tmp_path / folder / "room-0000"
+        room.mkdir(parents=True)
+        (room / "pano.png").write_bytes(png.read_bytes())
+        objs = [o for o in gt["objects"] if o["class"] in keep]
+        (room / "gt.json").write_text(json.dumps({**gt, "objects": objs}))
+    out = tmp_path / "w" / "net.pt"
+    args = ["--rooms", str(tmp_path / "z"), str(tmp_path / "a"), "--out", str(out), "--epochs", "1",
+            "--jitter", "1", "--val-fraction", "0.5", "--batch", "4"]
+    assert main(args) == 0
+    rec = json.loads(out.with_suffix(".json").read_text())
+    assert rec["rooms"] == {"folders": [str(tmp_path / "z"), str(tmp_path / "a")], "train": 1, "val": 1}
+    assert rec["crops"] == {"train": 5, "val": 1}  # z: bed, 2 chairs, sofa, tv; a (held out): its tv
+    assert set(rec["validation"]) == {"tv"}
+    assert load_orientation_net(out).module is not None
+    assert main(["--rooms", str(tmp_path / "none"), "--out", str(out)]) == 2
