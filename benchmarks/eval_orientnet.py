@@ -4,6 +4,9 @@ Run::
 
     pano2cad synth --rooms 1600 --seed 3000 --size 1024 --out out/train3000
     .venv/bin/python benchmarks/eval_orientnet.py held-out out/train3000 --first 1440 --last 1600 WEIGHTS.pt [...]
+
+(rooms 1440-1599 of train3000 are the held-out rooms of the committed weights, which were trained on
+``out/train5000`` and rooms 0-1439 of ``out/train3000``: :mod:`posecrf.train_orientation`)
     pano2cad synth --rooms 30 --seed 7000 --size 1024 --out out/tune7000
     .venv/bin/python benchmarks/eval_orientnet.py vs-hog out/tune7000 WEIGHTS.pt --weights 0 0.05 0.1 0.2 0.5
 

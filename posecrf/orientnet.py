@@ -24,9 +24,10 @@ mirrors crops at random, and the average is right more often on the whole
 (gt boxes, ``benchmarks/eval_orientnet.py held-out``: chairs within 45 deg,
 crop alone -> averaged, on tuning seeds 7000 / 8000 93 / 86 % -> 95 / 93 %
 with the session-24 weights, docs/EVALUATION.md, "Session 24"; with the
-committed weights, trained on twice the rooms in session 30, 98 / 92 % ->
-93 / 94 %, the first worse, and 91 % -> 92 % on 160 rooms none of them was
-trained on).
+session-30 weights 98 / 92 % -> 93 / 94 %, the first worse, and 91 % -> 92 %
+on 160 rooms none of them was trained on; with the committed weights, trained
+on 3040 rooms in session 31, 100 / 97 % -> 100 / 99 % and 95 % -> 96 %, while
+the wardrobes of those 160 rooms go 96 % -> 94 %).
 
 Convention: crop-relative yaw of :mod:`posecrf.crops` (direction object ->
 camera in the object's frame, counter-clockwise from its front, radians);
