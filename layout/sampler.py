@@ -1666,7 +1666,7 @@ def snap_to_walls(yaw: ArrayLike, floor: ArrayLike, max_angle: float) -> FloatAr
     floor : (M, 2) float
         The floor polygon (its walls' direction: :func:`layout.polygon.wall_direction`).
     max_angle : float
-        Radians: a yaw farther than this from every wall direction is kept.
+        Radians, >= 0: a yaw farther than this from every wall direction is kept.
 
     Returns
     -------
@@ -1677,6 +1677,8 @@ def snap_to_walls(yaw: ArrayLike, floor: ArrayLike, max_angle: float) -> FloatAr
     >>> np.degrees(snap_to_walls(np.radians([3.0, 88.0, -179.0, 30.0]), room, np.radians(10))).round(6).tolist()
     [0.0, 90.0, -180.0, 30.0]
     """
+    if not (math.isfinite(float(max_angle)) and float(max_angle) >= 0):
+        raise ValueError(f"max_angle: expected radians >= 0, got {max_angle!r}")
     y = np.asarray(yaw, dtype=np.float64)
     t = wall_direction(floor)
     quarter = 0.5 * np.pi

@@ -534,6 +534,8 @@ def test_snap_to_walls_in_a_turned_room():
     got = np.degrees(snap_to_walls(yaw, room, math.radians(10.0)))
     assert np.allclose(got, [20.0, 110.0, 65.0, 210.5, -70.0])
     assert np.array_equal(snap_to_walls(yaw, room, 0.0), yaw)
+    with pytest.raises(ValueError, match="max_angle"):
+        snap_to_walls(yaw, room, -0.1)
 
 
 def test_map_estimate_snaps_yaws_onto_the_walls():
