@@ -82,7 +82,8 @@ from numpy.typing import ArrayLike, NDArray
 from panogeom.coords import pixel_to_lonlat
 
 from .polygon import distance_to_boundary, oriented_rectangles, points_in_polygon
-from .sampler import DetectedObject, _BoxEdges, _fit_edges, geman_mcclure, initialise_objects, thin_footprints
+from .sampler import (DetectedObject, _BoxEdges, _fit_edges, geman_mcclure, initialise_objects, thin_footprints,
+                      wall_aligned_yaw)
 
 __all__ = ["ModelChoice", "select_models", "candidate_yaws", "occluded_edges", "room_misfit", "wall_gap",
            "DEFAULT_EDGE_SIGMA", "DEFAULT_GAP_WEIGHT", "DEFAULT_GAP_SIGMA",
@@ -176,7 +177,7 @@ def candidate_yaws(yaw: float, keep_within_deg: float = 5.0) -> list[float]:
     [30, 0, 90, 180, 270]
     """
     quarter = 0.5 * math.pi
-    aligned = round(float(yaw) / quarter) * quarter
+    aligned = float(wall_aligned_yaw(float(yaw)))
     yaws = [aligned + k * quarter for k in range(4)]
     if abs(float(yaw) - aligned) > math.radians(keep_within_deg):
         yaws.insert(0, float(yaw))

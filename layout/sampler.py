@@ -144,6 +144,7 @@ __all__ = [
     "hull_outline",
     "mesh_outline",
     "thin_footprints",
+    "wall_aligned_yaw",
     "snap_to_walls",
     "SamplerConfig",
     "SceneEnergies",
@@ -1656,6 +1657,19 @@ def thin_footprints(size2: ArrayLike) -> NDArray[np.bool_]:
     return s.min(axis=1) < _QUARTER_ASPECT * s.max(axis=1)
 
 
+def wall_aligned_yaw(yaw: ArrayLike, direction: float = 0.0) -> FloatArray:
+    """The wall-aligned yaw nearest each of ``yaw``: ``direction`` plus a multiple of 90 degrees (radians).
+
+    ``direction`` is the walls' direction (:func:`layout.polygon.wall_direction`; 0 in an upright frame whose axes
+    run along the walls). The result keeps the turn of ``yaw`` (no wrap to [0, 2 pi)).
+
+    >>> np.degrees(wall_aligned_yaw(np.radians([3.0, 93.0, -179.0, 400.0]))).round(6).tolist()
+    [0.0, 90.0, -180.0, 360.0]
+    """
+    quarter = 0.5 * np.pi
+    return direction + np.round((np.asarray(yaw, dtype=np.float64) - direction) / quarter) * quarter
+
+
 def snap_to_walls(yaw: ArrayLike, floor: ArrayLike, max_angle: float) -> FloatArray:
     """Yaws turned onto the nearest wall direction of a Manhattan floor polygon where they are near one.
 
@@ -1680,9 +1694,7 @@ def snap_to_walls(yaw: ArrayLike, floor: ArrayLike, max_angle: float) -> FloatAr
     if not (math.isfinite(float(max_angle)) and float(max_angle) >= 0):
         raise ValueError(f"max_angle: expected radians >= 0, got {max_angle!r}")
     y = np.asarray(yaw, dtype=np.float64)
-    t = wall_direction(floor)
-    quarter = 0.5 * np.pi
-    near = t + np.round((y - t) / quarter) * quarter
+    near = wall_aligned_yaw(y, wall_direction(floor))
     return np.where(np.abs(y - near) <= float(max_angle), near, y)
 
 
