@@ -64,7 +64,11 @@ The scale starts at a wall height of 2.5 m (the paper's Table 2 setting);
   proposal widths anneal geometrically from the paper's to ``anneal_to``
   times them over the epochs; among each object's proposals, one turns it
   by 180 degrees in place (``flip_moves``) and six by +-90 degrees, refitted
-  to its box (``quarter_moves``);
+  to its box (``quarter_moves``), each only where it raises the object's
+  ``E_o`` by less than ``turn_eo_margin`` (0.3). On the tuning sets the
+  turns had broken 13 right yaws and repaired 9 wrong ones; 12 of the 13
+  broken ones had raised ``E_o`` by 0.37-1.14 (one TV by 0.11), 7 of the
+  9 repairs by less than 0.09 (docs/EVALUATION.md, session 32);
 * ``w_s = 100``: with the paper's ``w_s = 1`` the image term (a fraction of
   pixels, ~1e-3 per 10 cm of object motion) is outweighed by the context
   prior (metres, and 10 per unit of misalignment), which then drags
@@ -1059,6 +1063,16 @@ class SamplerConfig:
         6 % nearer the camera. A HOG pose often gives an object's side view;
         the box fit of the model choice cannot always tell the two apart,
         the room evidence may.
+    turn_eo_margin : float
+        Improved mode: a flip or quarter-turn proposal is made only where it
+        raises the object's ``E_o`` by less than this (``inf``: always, as
+        before session 32). Where ``E_o`` is sure of the current yaw (the
+        orientation network's cost dominates it), a turn is a guess of the
+        room evidence alone, and the room is often the wrong one (a missed
+        notch puts a wall where there is none). The improved scheme: 0.3,
+        chosen on the tuning seeds 7000 and 8000 from the E_o rises of the
+        turns that the sampler without it took (docs/EVALUATION.md,
+        session 32).
     initial_camera_height : float or None
         Used when ``initial_wall_height`` is None: the camera height of the
         initial hypothesis, metres (e.g. the shared height of
@@ -1101,6 +1115,7 @@ class SamplerConfig:
     quarter_moves: bool = False
     initial_camera_height: float | None = None
     snap_yaw_deg: float = 0.0
+    turn_eo_margin: float = math.inf
 
     def __post_init__(self) -> None:
         if self.mode not in ("paper", "improved"):
@@ -1131,6 +1146,8 @@ class SamplerConfig:
             v = float(getattr(self, name))
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name}: expected a finite value >= 0, got {getattr(self, name)!r}")
+        if not float(self.turn_eo_margin) > 0:
+            raise ValueError(f"turn_eo_margin: expected a value > 0 (inf: no limit), got {self.turn_eo_margin!r}")
         if not 0.0 <= float(self.snap_yaw_deg) <= 45.0:
             raise ValueError(f"snap_yaw_deg: expected degrees in [0, 45], got {self.snap_yaw_deg!r}")
         if self.alignment is not None:
@@ -1143,11 +1160,12 @@ class SamplerConfig:
         """The improved scheme (module docstring): scale fitted to the boxes and kept (``sample_scale=False``),
         coordinate-wise annealed moves with flips and quarter turns, ``surface_weight=100``, ``keep_in_box=True``,
         the box term (``box_weight=1``, ``box_sigma`` 1.2 degrees), yaws snapped onto the walls within 10
-        degrees (``snap_yaw_deg``); ``overrides`` replace any of these."""
+        degrees (``snap_yaw_deg``), turns only where they raise E_o by less than 0.3 (``turn_eo_margin``);
+        ``overrides`` replace any of these."""
         opts: dict[str, object] = {"mode": "improved", "initial_wall_height": None, "surface_weight": 100.0,
                                    "keep_in_box": True, "sample_scale": False, "flip_moves": True,
                                    "quarter_moves": True, "box_weight": 1.0, "box_sigma": math.radians(1.2),
-                                   "snap_yaw_deg": 10.0}
+                                   "snap_yaw_deg": 10.0, "turn_eo_margin": 0.3}
         opts.update(overrides)
         return cls(**opts)  # type: ignore[arg-type]
 
@@ -1713,6 +1731,16 @@ def _snap_yaws(prob: _Problem, lam: float, xy: FloatArray, yaw: FloatArray, max_
     return out, evaluated
 
 
+def _turn_allowed(prob: _Problem, yaw: FloatArray, turn: float) -> NDArray[np.bool_]:
+    """``(N,)``: objects whose ``E_o`` rises by less than ``SamplerConfig.turn_eo_margin`` when turned by ``turn``
+    radians from ``yaw`` (N,)."""
+    margin = float(prob.cfg.turn_eo_margin)
+    if not math.isfinite(margin):
+        return np.ones(yaw.shape, dtype=bool)
+    e = prob.orientation.per_object(np.stack([yaw, yaw + turn]))
+    return e[1] - e[0] < margin
+
+
 def _improved_epoch(prob: _Problem, st: _State, shrink: float, g: np.random.Generator) -> tuple[int, int]:
     """One epoch of the improved scheme (scale-only moves, then one-object moves). (evaluated, invalid)."""
     cfg, n, s = prob.cfg, prob.n, int(prob.cfg.samples_per_epoch)
@@ -1739,16 +1767,16 @@ def _improved_epoch(prob: _Problem, st: _State, shrink: float, g: np.random.Gene
                         + g.normal(size=(n, s, 1)) * sd_c[:, None, None] * across[:, None, :])
     yaw_s[jj, :, jj] += g.normal(0.0, math.sqrt(cfg.yaw_variance) * shrink, size=(n, s))
     if cfg.flip_moves:  # proposal 0 of each asymmetric object: turned by 180 degrees in place
-        f = jj[prob.weights > 0]
+        f = jj[(prob.weights > 0) & _turn_allowed(prob, st.yaw, np.pi)]
         xy_s[f, 0, f] = st.xy[f]
         yaw_s[f, 0, f] = st.yaw[f] + np.pi
     # proposals 1-6: turned by +-90 degrees, refitted to the box, and pulled 0 / 3 / 6 % towards the camera
     # (a refit footprint flush against a wall may cut it by a centimetre)
-    f = prob.turnable
-    if cfg.quarter_moves and s > 2 * len(_QUARTER_PULL) and f.size:
+    if cfg.quarter_moves and s > 2 * len(_QUARTER_PULL) and prob.turnable.size:
         k = 1
         for turn in (0.5 * np.pi, -0.5 * np.pi):
-            xy_q = prob.refit(st.lam, st.xy, st.yaw + turn)
+            f = prob.turnable[_turn_allowed(prob, st.yaw, turn)[prob.turnable]]
+            xy_q = prob.refit(st.lam, st.xy, st.yaw + turn) if f.size else st.xy
             for pull in _QUARTER_PULL:
                 xy_s[f, k, f] = xy_q[f] * pull
                 yaw_s[f, k, f] = st.yaw[f] + turn

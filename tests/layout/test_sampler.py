@@ -415,20 +415,51 @@ def test_flip_moves_turn_a_back_to_front_object_round(seed):
         > math.radians(90.0)
 
 
+@pytest.mark.parametrize("seed", [3, 6])
+def test_turns_are_not_offered_where_e_o_is_sure_of_the_yaw(seed):
+    """The flipped bed and TV of the test above, with an E_o that prefers their (wrong) yaws: ``rise`` higher
+    turned round, ``rise / 2`` turned by 90 degrees. A rise below ``turn_eo_margin`` lets the flips through; one
+    above it stops them, although the room evidence would have paid for the turn (no margin: turned)."""
+    pl, labels, dets, floor0, ceil0 = synthetic(seed)
+    dets = [replace(d, yaw=d.yaw + math.pi) if d.cls in ("bed", "tv") else d for d in dets]
+    obs = observe_labels(labels, [d.bbox_pano for d in dets], width=256, object_pixels="matched")
+    lik = surface_likelihood(obs, floor0, ceil0, 1.6)
+
+    def yaw_errors(rise, margin):
+        eo = [(lambda y, y0=d.yaw: 0.5 * rise * (1.0 - np.cos(y - y0))) if d.cls in ("bed", "tv") else None
+              for d in dets]
+        cfg = SamplerConfig.improved(n_samples=400, turn_eo_margin=margin)
+        res = map_estimate(lik, dets, image_width=W, image_height=W // 2, orientation=eo, config=cfg, rng=seed)
+        check_valid(res.scene)
+        return [abs(math.remainder(o.yaw - g.yaw, 2 * math.pi)) for o, g in zip(res.scene.objects, pl.objects)
+                if g.class_name in ("bed", "tv")]
+
+    assert SamplerConfig.improved().turn_eo_margin == 0.3 and SamplerConfig().turn_eo_margin == math.inf
+    assert max(yaw_errors(0.1, 0.3)) < math.radians(10.0)
+    assert min(yaw_errors(0.6, 0.3)) > math.radians(90.0)
+    assert max(yaw_errors(0.6, math.inf)) < math.radians(10.0)
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="turn_eo_margin"):
+            SamplerConfig(turn_eo_margin=bad)
+
+
 def test_quarter_moves_turn_side_on_objects_round():
     """Beds whose pose estimates are 90 degrees off (a HOG side view), in 8 rooms: the quarter-turn proposals,
     each refitted to its box, turn most of them back; without them the yaw proposals (0.32 rad) never get
-    there. A thin footprint (a TV) is never turned by 90 degrees."""
+    there. A thin footprint (a TV) is never turned by 90 degrees, and neither is a bed whose E_o rises by more
+    than ``turn_eo_margin`` at the turned yaws."""
 
-    def turned(cfg, cls="bed"):
+    def turned(cfg, cls="bed", rise=0.0):
         ok = 0
         for seed in range(8):
             pl, labels, dets, floor0, ceil0 = synthetic(seed)
             dets = [replace(d, yaw=d.yaw + 0.5 * math.pi) if d.cls == cls else d for d in dets]
             obs = observe_labels(labels, [d.bbox_pano for d in dets], width=256, object_pixels="matched")
             lik = surface_likelihood(obs, floor0, ceil0, 1.6)
+            eo = [(lambda y, y0=d.yaw: rise * np.sin(y - y0) ** 2) if d.cls == cls else None for d in dets]
             try:
-                res = map_estimate(lik, dets, image_width=W, image_height=W // 2, config=cfg, rng=seed)
+                res = map_estimate(lik, dets, image_width=W, image_height=W // 2, orientation=eo, config=cfg,
+                                   rng=seed)
             except PosteriorError:
                 continue
             check_valid(res.scene)
@@ -443,6 +474,8 @@ def test_quarter_moves_turn_side_on_objects_round():
     assert turned(SamplerConfig.improved(n_samples=400)) >= 5
     assert turned(SamplerConfig.improved(n_samples=400, quarter_moves=False)) == 0
     assert turned(SamplerConfig.improved(n_samples=400), cls="tv") == 0
+    assert turned(SamplerConfig.improved(n_samples=400, box_weight=0.0), rise=0.5) == 0
+    assert turned(SamplerConfig.improved(n_samples=400, box_weight=0.0, turn_eo_margin=math.inf), rise=0.5) >= 6
 
 
 def test_a_given_scale_starts_the_improved_scheme_at_the_box_fit():
