@@ -92,6 +92,37 @@ def test_the_pick_weight_picks_the_candidates_but_leaves_the_height(seed):
         select_models(cands, W, H, pick_appearance_weight=-1.0)
 
 
+def test_the_pick_weighs_the_yaw_s_appearance_apart_from_the_model_s():
+    """A bed's candidates: the four bed models at its yaw and turned 90 degrees. The appearance cost is a yaw part
+    (the same for every model, as the orientation network's) plus a model part. The pick weighs the yaw's part
+    (each candidate's object's best at that yaw) by ``pick_yaw_weight`` and the rest by ``pick_appearance_weight``:
+    a strong yaw weight settles the yaw and leaves the model to the box."""
+    cam = 1.5
+    _, scene_cands = scene(1, cam)
+    bed = scene_cands[0]
+    cands = [[DetectedObject(o.cls, o.bbox_pano, o.size, o.yaw + t, model_id=o.model_id)
+              for t in (0.0, 0.5 * math.pi) for o in bed]]
+    yaw_part = np.repeat([0.4, 0.0], len(bed))  # the turn looks better, whatever the model
+    model_part = np.tile([0.5, 0.3, 0.2, 0.0], 2)  # the appearance prefers the last model at both yaws
+    app = [yaw_part + model_part]
+    box = select_models(cands, W, H, camera_height=cam).cost[0]
+    assert np.argmin(box) < 4 and np.argmin(box) != 3  # the box prefers the first yaw and another model
+    for w_yaw, w_model in ((1.0, 1.0), (10.0, 3.0), (3.0, 10.0), (0.0, 0.0)):
+        res = select_models(cands, W, H, camera_height=cam, appearance=app, pick_yaw_weight=w_yaw,
+                            pick_appearance_weight=w_model)
+        assert res.index[0] == int(np.argmin(box + w_yaw * yaw_part + w_model * model_part))
+    # the yaw's weight alone: the appearance's yaw, the box's model at it
+    res = select_models(cands, W, H, camera_height=cam, appearance=app, pick_yaw_weight=1e3,
+                        pick_appearance_weight=0.0)
+    assert res.index[0] == 4 + int(np.argmin(box[4:]))
+    # the model's weight alone: the appearance's model, the box's yaw for it
+    res = select_models(cands, W, H, camera_height=cam, appearance=app, pick_yaw_weight=0.0,
+                        pick_appearance_weight=1e3)
+    assert res.index[0] == (3 if box[3] <= box[7] else 7)
+    with pytest.raises(ValueError, match="pick_yaw_weight"):
+        select_models(cands, W, H, pick_yaw_weight=float("inf"))
+
+
 def test_one_thin_candidate_does_not_lighten_its_object_s_appearance_weight():
     """The pick weighs the appearance of all candidates of an object alike: a narrow single bed among the double
     beds (its footprint thin by :func:`layout.sampler.thin_footprints`) pays the pick weight like the rest, so the
@@ -131,7 +162,7 @@ def test_the_room_term_rejects_a_candidate_through_a_wall():
     cost slightly for the turn wins on the box alone; the floor polygon then rules the turn out, since fitted to
     the box it reaches 15 cm through the side wall. The appearance cost is set against the box misfit at an edge
     scale of 0.6 degrees (the default until session 21) and an appearance weight of 1 for the pick (3 since session
-    22), which the test pins."""
+    22; the yaw's part 10 since session 32), which the test pins."""
     edge = math.radians(0.6)
     cam = 1.5
     size, center = np.array([2.0, 1.6, 0.6]), np.array([3.0, 0.4, 0.3])
@@ -139,7 +170,7 @@ def test_the_room_term_rejects_a_candidate_through_a_wall():
     cands = [[DetectedObject("bed", box, size, math.pi + t, model_id="bed-0") for t in (0.0, 0.5 * math.pi)]]
     room = np.array([[-3.0, -3.0], [4.05, -3.0], [4.05, 1.25], [-3.0, 1.25]])  # back and side walls 5 cm away
     app = [np.array([3.1, 0.0])]
-    fit = dict(edge_sigma=edge, camera_height=cam, appearance=app, pick_appearance_weight=1.0)
+    fit = dict(edge_sigma=edge, camera_height=cam, appearance=app, pick_appearance_weight=1.0, pick_yaw_weight=1.0)
     assert select_models(cands, W, H, **fit).index.tolist() == [1]
     res = select_models(cands, W, H, **fit, floor=room, floor_camera_height=cam)
     assert res.index.tolist() == [0]
@@ -169,14 +200,14 @@ def test_the_wall_gap_term_turns_a_bed_s_back_to_the_wall():
     box = world_box_to_pano(center, size, math.pi, W, H, camera_height=cam).extent
     cands = [[DetectedObject("bed", box, size, math.pi + t, model_id="bed-0") for t in (0.0, math.pi)]]
     room = np.array([[-3.0, -3.0], [4.0, -3.0], [4.0, 3.0], [-3.0, 3.0]])  # the head wall at x = 4
-    fit = dict(camera_height=cam, appearance=[np.array([0.2, 0.0])], floor=room, floor_camera_height=cam)
+    fit = dict(camera_height=cam, appearance=[np.array([0.05, 0.0])], floor=room, floor_camera_height=cam)
     assert select_models(cands, W, H, **fit).index.tolist() == [1]
     assert select_models(cands, W, H, **fit, back_to_wall=[False]).index.tolist() == [1]
     res = select_models(cands, W, H, **fit, back_to_wall=[True])
     assert res.index.tolist() == [0]
     assert select_models(cands, W, H, **fit, back_to_wall=[True], gap_weight=0.0).index.tolist() == [1]
     # without a floor there is no wall to stand against
-    assert select_models(cands, W, H, camera_height=cam, appearance=[np.array([0.2, 0.0])],
+    assert select_models(cands, W, H, camera_height=cam, appearance=[np.array([0.05, 0.0])],
                          back_to_wall=[True]).index.tolist() == [1]
     # the term itself: 0 with the back on (or through) a wall, rho(gap / sigma) in the room, bounded by 1
     cost = wall_gap([[3.0, 0.2], [3.2, 0.2], [2.8, 0.2], [3.0, 0.2]], [math.pi, math.pi, math.pi, 0.0],
