@@ -1653,6 +1653,7 @@ def _paper_epoch(prob: _Problem, st: _State, yaw_pose: FloatArray, g: np.random.
     return s, int(np.count_nonzero(res.violation > 0))
 
 
+_TURNS = (np.pi, 0.5 * np.pi, -0.5 * np.pi)  # the flip and the two quarter turns, radians
 _QUARTER_PULL = (1.0, 0.97, 0.94)  # radial factors of the quarter-turn proposals (SamplerConfig.quarter_moves)
 #: Footprints thinner than this (width / length) are never turned by 90 degrees: the side view of a TV is a
 #: sliver no pose estimate mistakes for its front (with quarter turns for TVs too, 10 % of the TVs of the tuning
@@ -1731,14 +1732,14 @@ def _snap_yaws(prob: _Problem, lam: float, xy: FloatArray, yaw: FloatArray, max_
     return out, evaluated
 
 
-def _turn_allowed(prob: _Problem, yaw: FloatArray, turn: float) -> NDArray[np.bool_]:
-    """``(N,)``: objects whose ``E_o`` rises by less than ``SamplerConfig.turn_eo_margin`` when turned by ``turn``
-    radians from ``yaw`` (N,)."""
+def _turns_allowed(prob: _Problem, yaw: FloatArray, turns: Sequence[float]) -> NDArray[np.bool_]:
+    """``(len(turns), N)``: whether each object's ``E_o`` rises by less than ``SamplerConfig.turn_eo_margin`` when
+    turned by each of ``turns`` (radians) from ``yaw`` (N,)."""
     margin = float(prob.cfg.turn_eo_margin)
     if not math.isfinite(margin):
-        return np.ones(yaw.shape, dtype=bool)
-    e = prob.orientation.per_object(np.stack([yaw, yaw + turn]))
-    return e[1] - e[0] < margin
+        return np.ones((len(turns),) + yaw.shape, dtype=bool)
+    e = prob.orientation.per_object(yaw[None] + np.array([0.0, *turns])[:, None])  # E_o at yaw, then each turn
+    return e[1:] - e[0] < margin
 
 
 def _improved_epoch(prob: _Problem, st: _State, shrink: float, g: np.random.Generator) -> tuple[int, int]:
@@ -1766,16 +1767,18 @@ def _improved_epoch(prob: _Problem, st: _State, shrink: float, g: np.random.Gene
     xy_s[jj, :, jj] += (g.normal(size=(n, s, 1)) * sd_a[:, None, None] * along[:, None, :]
                         + g.normal(size=(n, s, 1)) * sd_c[:, None, None] * across[:, None, :])
     yaw_s[jj, :, jj] += g.normal(0.0, math.sqrt(cfg.yaw_variance) * shrink, size=(n, s))
+    # flips and quarter turns only where E_o is unsure of the current yaw (SamplerConfig.turn_eo_margin)
+    allowed = _turns_allowed(prob, st.yaw, _TURNS)
     if cfg.flip_moves:  # proposal 0 of each asymmetric object: turned by 180 degrees in place
-        f = jj[(prob.weights > 0) & _turn_allowed(prob, st.yaw, np.pi)]
+        f = jj[(prob.weights > 0) & allowed[0]]
         xy_s[f, 0, f] = st.xy[f]
-        yaw_s[f, 0, f] = st.yaw[f] + np.pi
+        yaw_s[f, 0, f] = st.yaw[f] + _TURNS[0]
     # proposals 1-6: turned by +-90 degrees, refitted to the box, and pulled 0 / 3 / 6 % towards the camera
     # (a refit footprint flush against a wall may cut it by a centimetre)
     if cfg.quarter_moves and s > 2 * len(_QUARTER_PULL) and prob.turnable.size:
         k = 1
-        for turn in (0.5 * np.pi, -0.5 * np.pi):
-            f = prob.turnable[_turn_allowed(prob, st.yaw, turn)[prob.turnable]]
+        for turn, ok in zip(_TURNS[1:], allowed[1:]):
+            f = prob.turnable[ok[prob.turnable]]
             xy_q = prob.refit(st.lam, st.xy, st.yaw + turn) if f.size else st.xy
             for pull in _QUARTER_PULL:
                 xy_s[f, k, f] = xy_q[f] * pull
