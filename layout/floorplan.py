@@ -13,6 +13,10 @@ Manhattan polygon with any number of corners:
   hidden walls are completed through the occluding end point: a single
   perpendicular wall between two parallel walls, two walls (through both
   end points) between perpendicular walls that do not meet;
+* between two parallel walls on opposite sides of the camera (nothing seen
+  in between: masked or unlabelled columns), the perpendicular wall goes
+  through the farther of the two end points in the gap's direction, so both
+  observed walls stay whole (:func:`_beyond_both`);
 * walls shorter than ``min_wall`` (noise, or a corner a few columns off)
   are removed and their two parallel neighbours merged, keeping the better
   supported offset.
@@ -266,10 +270,27 @@ def _complete(walls: list[_Line], corner_tol: float) -> list[_Line]:
             a_far = bool(np.hypot(*pa) > np.hypot(*pb))
             out.append(_Line(1 - a.axis, float(pa[1 - a.axis]), 0, through_far_end=a_far))
             out.append(_Line(1 - b.axis, float(pb[1 - b.axis]), 0, through_far_end=not a_far))
+        elif np.sign(a.offset) != np.sign(b.offset):
+            out.append(_Line(1 - a.axis, _beyond_both(a, b, pa, pb), 0))
         else:
             near = pa if np.hypot(*pa) <= np.hypot(*pb) else pb
             out.append(_Line(1 - a.axis, float(near[1 - a.axis]), 0))
     return out
+
+
+def _beyond_both(a: _Line, b: _Line, pa: FloatArray, pb: FloatArray) -> float:
+    """Offset of the hidden wall between parallel walls ``a`` and ``b`` on opposite sides of the camera.
+
+    ``pa``, ``pb`` (2,) are where ``a`` was last seen and ``b`` first seen. The
+    wall joining them lies in the direction of the unseen gap between them
+    (angular order), and no nearer than either end point: a line through the
+    nearer one would cut the other wall's observed part off the room.
+    """
+    k = 1 - a.axis
+    gap = float((float(b.lon_start) - float(a.lon_end)) % _TWO_PI)
+    mid = lonlat_to_ray([float(a.lon_end) + 0.5 * gap, 0.0])[:2]
+    side = np.sign(mid[k]) or np.sign(pa[k] + pb[k]) or 1.0
+    return float(side * max(side * pa[k], side * pb[k]))
 
 
 def _drop_short(lines: list[_Line], min_wall: float) -> list[_Line]:

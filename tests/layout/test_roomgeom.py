@@ -76,6 +76,42 @@ def test_a_wall_passing_out_of_sight_goes_on_behind_the_occluder(room):
     assert iou_3d(geo.floor, geo.ceiling_z, room, 2.6) > 0.97
 
 
+def _lon(x, y):
+    return float(np.arctan2(-y, x))  # column direction (cos lon, -sin lon), panogeom.coords
+
+
+def test_closing_keeps_both_walls_whole_across_an_unseen_gap():
+    # room x in [-3, 1], y in [-2, 2], camera at the origin; the wall y = -2 and the ends of the side walls are
+    # hidden (furniture masked): x = 1 is seen down to y = -0.5, x = -3 from y = -1.8. The wall joining two
+    # parallel walls on opposite sides of the camera goes beyond both seen ends (y = -1.8); through the nearer
+    # end (y = -0.5, the rule for a step between walls on one side) it cut x = -3's seen part off the room.
+    W = WallObservation
+    walls = [W(1, 2.0, _lon(-3, 2), _lon(1, 2), 80), W(0, 1.0, _lon(1, 2), _lon(1, -0.5), 60),
+             W(0, -3.0, _lon(-3, -1.8), _lon(-3, 2) + 2 * np.pi, 70)]
+    plan = close_manhattan_polygon(walls)
+    assert polygon_problems(plan.polygon) == []
+    np.testing.assert_allclose(np.sort(plan.polygon, axis=0), [[-3.0, -1.8], [-3.0, -1.8], [1.0, 2.0], [1.0, 2.0]],
+                               atol=1e-9)
+    assert plan.n_inferred == 1 and not plan.uncertain
+
+
+def test_a_room_whose_far_side_is_masked_keeps_its_seen_walls():
+    # the same in label space: the wall y = -2 of a 4 m x 4 m room masked in every column the closing must
+    # bridge; before, the closing put the hidden wall through the near end (y = -0.5): 10 m2 of the true 16
+    # (x = -3 seen down to y = -1.8)
+    room = np.array([[-3.0, -2.0], [1.0, -2.0], [1.0, 2.0], [-3.0, 2.0]])
+    lab = render_room_labels(room, 2.6, [0.0, 0.0], 1.5, 1024)
+    lon = (np.arange(1024) + 0.5) / 1024 * 2 * np.pi - np.pi
+    mask = np.zeros(lab.shape, bool)
+    mask[:, (lon > _lon(1, -0.5)) & (lon < _lon(-3, -1.8))] = True
+    geo = estimate_room_geometry(lab, 1.5, object_mask=mask)
+    _assert_valid(geo)
+    assert geo.n_corners == 4
+    lo, hi = geo.floor.min(axis=0), geo.floor.max(axis=0)
+    np.testing.assert_allclose([lo[0], hi[0], hi[1]], [-3.0, 1.0, 2.0], atol=0.03)
+    assert -2.0 - 0.03 <= lo[1] <= -1.8 + 0.03  # beyond both seen ends, no farther than the true wall
+
+
 def test_closing_falls_back_to_a_rectangle_with_one_wall():
     plan = close_manhattan_polygon([WallObservation(0, 2.0, -0.5, 0.5, 40)], points=[[2.0, -1.0], [2.0, 1.0]])
     assert plan.uncertain and any("bounding rectangle" in r for r in plan.reasons)
