@@ -53,7 +53,10 @@ decides which way a wall faces. :func:`estimate_surfaces` goes:
    (:mod:`layout.surfaces.boundary_net`, optional, ``ceiling_net``): the
    same move (:func:`layout.surfaces.boundary.move_ceiling_boundary`) onto
    the boundary a HorizonNet-style network regresses for every column of
-   the empty room at once (docs/EVALUATION.md, "Session 19").
+   the empty room at once (docs/EVALUATION.md, "Session 19"). Its two
+   boundaries (ceiling and floor of the empty room, every column) are then
+   also the shape evidence of step 4, in place of GC's boundaries, which
+   clutter and furniture break (docs/EVALUATION.md, "Session 33").
 
 The clutter-free ``layout`` map fills the floor and ceiling boundaries hidden
 by clutter from the fitted column states (the wall model of step 4), giving
@@ -435,7 +438,7 @@ def column_orientation(heading: ArrayLike, floor_lat: ArrayLike, ceiling_lat: Ar
 def fuse_surfaces(gc_probs: ArrayLike, om: OrientationMap, axes: ArrayLike | None = None,
                   object_mask: ArrayLike | None = None, *, min_confidence: float = 0.5, om_weight: float = 3.0,
                   shape_weight: float = 1.0, switch_cost: float = 20.0,
-                  warnings: tuple[str, ...] = ()) -> SurfaceLabels:
+                  warnings: tuple[str, ...] = (), room_boundaries: ArrayLike | None = None) -> SurfaceLabels:
     """Fuse geometric context and an orientation map into surface labels (steps 2, 4, 5 of the module docstring).
 
     Parameters
@@ -456,6 +459,13 @@ def fuse_surfaces(gc_probs: ArrayLike, om: OrientationMap, axes: ArrayLike | Non
         change of wall, in the orientation chain (:func:`column_orientation`).
     warnings : tuple of str
         Carried into the result.
+    room_boundaries : (2, W) float, optional
+        Ceiling and floor boundary rows of the empty room in every column
+        (e.g. the boundary network's, :mod:`layout.surfaces.boundary_net`):
+        the orientation chain reads the walls' shape from them, at full
+        weight in every column, instead of from GC's boundaries (which are
+        weighted by how clean they are). The labels' own boundaries still
+        come from GC.
 
     Returns
     -------
@@ -498,8 +508,15 @@ def fuse_surfaces(gc_probs: ArrayLike, om: OrientationMap, axes: ArrayLike | Non
     n_band = np.maximum(in_band.sum(axis=0), 1)
     om_x = ((om.labels == WALL_X) & in_band).sum(axis=0) / n_band
     om_y = ((om.labels == WALL_Y) & in_band).sum(axis=0) / n_band
-    col = column_orientation(psi, lat_of(floor_v), lat_of(ceil_v), fw, cw, om_x, om_y, height=H, om_weight=om_weight,
-                             shape_weight=shape_weight, switch_cost=switch_cost)
+    if room_boundaries is None:
+        shape_c, shape_f, shape_cw, shape_fw = ceil_v, floor_v, cw, fw
+    else:
+        rb = np.asarray(room_boundaries, dtype=np.float64)
+        if rb.shape != (2, W) or not np.all(np.isfinite(rb)):
+            raise ValueError(f"room_boundaries: expected finite (2, {W}) rows, got shape {rb.shape}")
+        shape_c, shape_f, shape_cw, shape_fw = rb[0], rb[1], np.ones(W), np.ones(W)
+    col = column_orientation(psi, lat_of(shape_f), lat_of(shape_c), shape_fw, shape_cw, om_x, om_y, height=H,
+                             om_weight=om_weight, shape_weight=shape_weight, switch_cost=switch_cost)
     if not np.isfinite(col["ceiling_ratio"]):
         warn.append("fewer than 8 columns show both a clean ceiling and a clean floor boundary: wall orientation "
                     "from the floor boundary and the orientation map only")
@@ -598,7 +615,10 @@ def estimate_surfaces(pano: ArrayLike, segments: LineSegments | None = None, axe
         boundary network (:mod:`layout.surfaces.boundary_net`; ``True``: the
         committed weights) instead, unless the two are more than
         ``CEILING_NET_MAX_GAP_512`` rows apart in the median column (a
-        warning then says the labels' boundary was kept). Not together with
+        warning then says the labels' boundary was kept, and GC's boundaries
+        give the walls' shape). Where kept, its ceiling and floor boundaries
+        are also the walls' shape evidence of the orientation chain
+        (``fuse_surfaces(room_boundaries=...)``). Not together with
         ``snap_ceiling``.
 
     Returns
@@ -635,25 +655,29 @@ def estimate_surfaces(pano: ArrayLike, segments: LineSegments | None = None, axe
                     f"floor and ceiling boundary shape")
         om = OrientationMap(labels=np.zeros((H, W), np.uint8), confidence=np.zeros((H, W), np.float32),
                             support=np.zeros((H, W, 3), np.float32), n_segments=om.n_segments)
-    fused = fuse_surfaces(probs, om, A, obj, min_confidence=min_confidence, warnings=tuple(warn))
     if snap_ceiling and ceiling_net:
         raise ValueError("snap_ceiling and ceiling_net: expected at most one way to move the ceiling boundary")
-    if not (snap_ceiling or ceiling_net):
-        return fused
-    cols = fused.columns
+    net_v = None
     if ceiling_net:
-        # step 6': the ceiling-wall boundary of the boundary network (layout.surfaces.boundary_net)
+        # step 6': the boundaries of the boundary network (layout.surfaces.boundary_net), kept where they are near
+        # the labels' ceiling boundary
         from .boundary_net import load_boundary_net
 
         net = load_boundary_net() if ceiling_net is True else ceiling_net
-        new_v = net(img)[0]
-        seen = np.isfinite(cols.ceiling_v)
-        gap = float(np.median(np.abs(new_v[seen] - cols.ceiling_v[seen]))) * 512.0 / H if seen.any() else np.inf
+        net_v = net(img)
+        gap = float(np.median(np.abs(net_v[0] - column_boundaries(probs, obj)[0]))) * 512.0 / H
         if not gap <= CEILING_NET_MAX_GAP_512:
-            return replace(fused, warnings=fused.warnings + (
-                f"boundary network: its ceiling-wall boundary is {gap:.1f} rows (of 512) from the labels' in the "
-                f"median column (at most {CEILING_NET_MAX_GAP_512:g} expected): the panorama looks unlike its "
-                f"training rooms, the labels' boundary is kept",))
+            warn.append(f"boundary network: its ceiling-wall boundary is {gap:.1f} rows (of 512) from the labels' in "
+                        f"the median column (at most {CEILING_NET_MAX_GAP_512:g} expected): the panorama looks "
+                        f"unlike its training rooms, the labels' boundary is kept")
+            net_v = None
+    fused = fuse_surfaces(probs, om, A, obj, min_confidence=min_confidence, warnings=tuple(warn),
+                          room_boundaries=net_v)
+    if net_v is None and not snap_ceiling:
+        return fused
+    cols = fused.columns
+    if net_v is not None:
+        new_v = net_v[0]
     else:
         # step 6: the ceiling-wall boundary moved onto the image's edge (layout.surfaces.boundary)
         new_v = ceiling_edge_path(edge_strength(img, fused.labels.shape), cols.ceiling_v)

@@ -149,14 +149,16 @@ def test_training_script_writes_loadable_weights_and_a_record(tmp_path):
 
 
 class _ShiftedRows:
-    """A stand-in boundary model: a fixed ceiling curve (one row per column of the panorama)."""
+    """A stand-in boundary model: fixed ceiling and floor curves (one row per column of the panorama; the floor
+    three quarters down where not given)."""
 
-    def __init__(self, rows):
+    def __init__(self, rows, floor_rows=None):
         self.rows = np.asarray(rows, dtype=float)
+        self.floor_rows = None if floor_rows is None else np.asarray(floor_rows, dtype=float)
 
     def __call__(self, pano):
         h, w = pano.shape[:2]
-        return np.stack([self.rows, np.full(w, h * 0.75)])
+        return np.stack([self.rows, np.full(w, h * 0.75) if self.floor_rows is None else self.floor_rows])
 
 
 def test_estimate_surfaces_moves_the_ceiling_boundary_onto_the_networks():
@@ -164,7 +166,7 @@ def test_estimate_surfaces_moves_the_ceiling_boundary_onto_the_networks():
     base = estimate_surfaces(img)
     for shift in (-1.0, 1.0):  # one row up / down in every column (4 of a 512-row map)
         target = np.round(base.columns.ceiling_v) + shift
-        moved = estimate_surfaces(img, ceiling_net=_ShiftedRows(target))
+        moved = estimate_surfaces(img, ceiling_net=_ShiftedRows(target, base.columns.floor_v))
         rows = np.arange(64)[:, None]
         above = (rows < target[None, :]) & np.isin(base.labels[:64], (2, 3, 4))
         lo, hi = np.minimum(target, target - shift), np.maximum(target, target - shift)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from layout.labelmap import render_room_labels
+from layout.labelmap import render_room_labels, room_boundaries
 from layout.surfaces import (
     LABEL_COLORS,
     SurfaceLabels,
@@ -91,6 +91,30 @@ def test_boundary_shape_alone_orients_the_walls(floor, cam):
     assert np.mean(s.layout[wall] == truth[wall]) > 0.95
     assert np.mean(s.labels == truth) > 0.93
     assert s.columns.ceiling_ratio == pytest.approx((2.8 - 1.5) / 1.5, rel=0.05)
+
+
+@pytest.mark.parametrize("cam", [[0.0, 0.0], [2.2, -0.6]])
+def test_the_empty_room_boundaries_orient_the_walls_that_objects_hide(cam):
+    # an object hides 80 columns around each corner from floor to ceiling and the OM is empty: GC's boundaries say
+    # nothing there and the chain guesses where the wall turns (half the columns wrong); the empty room's
+    # boundaries (what the boundary network regresses) put the turn in its place
+    W, H = 512, 256
+    truth = render_room_labels(L_ROOM, 2.8, cam, 1.5, W)
+    rb = room_boundaries(L_ROOM, 2.8, cam, 1.5, W)
+    corners = np.flatnonzero(rb.wall_label != np.roll(rb.wall_label, 1))
+    for c in corners:
+        band = np.abs((np.arange(W) - c + W // 2) % W - W // 2) <= 40
+        obj = np.zeros((H, W), bool)
+        obj[:, band] = True
+        gc_only = fuse_surfaces(oracle_probs(truth), empty_om(H, W), object_mask=obj)
+        empty = fuse_surfaces(oracle_probs(truth), empty_om(H, W), object_mask=obj,
+                              room_boundaries=np.stack([rb.ceil_v, rb.floor_v]))
+        assert np.mean(empty.columns.wall_label[band] == rb.wall_label[band]) > 0.94
+        assert np.mean(gc_only.columns.wall_label[band] == rb.wall_label[band]) < 0.75
+        # the labels' own boundaries still come from GC
+        assert np.array_equal(empty.columns.ceiling_v, gc_only.columns.ceiling_v)
+    with pytest.raises(ValueError, match="room_boundaries"):
+        fuse_surfaces(oracle_probs(truth), empty_om(H, W), room_boundaries=np.zeros((2, W - 1)))
 
 
 def test_column_orientation_follows_the_om_where_the_boundaries_say_nothing():
