@@ -22,6 +22,18 @@ in ``layout/surfaces/weights/boundary_net.json``)::
     .venv/bin/python -m layout.surfaces.train_boundary --data out/train/surfaces/train-10[0-1][0-9] \\
         --val out/train/surfaces/val --out layout/surfaces/weights --epochs 16 --lr 1e-3 \\
         --init out/train/boundary1/boundary_net.pt
+    # third and fourth stages (session 33), from those weights, adding the orientation network's rooms (seeds
+    # 3000 and 5000, rendered at 1024x512 and resized to the working size) and 1500 new ones:
+    for s in 3000 5000; do .venv/bin/pano2cad synth --rooms 1600 --seed $s --size 1024 --out out/train$s; done
+    for s in $(seq 1015 1024); do $S --seed $s --rooms 150 --out out/s33/train/train-$s; done
+    $S --seed 2000 --rooms 40 --out out/s33/train/val
+    .venv/bin/python -m layout.surfaces.train_boundary --data out/train3000 out/s33/train/train-10[1-2][0-9] \\
+        --val out/s33/train/val --out out/s33/train/bnet --epochs 8 --lr 5e-4 --threads 2 \\
+        --init layout/surfaces/weights/boundary_net.pt
+    .venv/bin/python -m layout.surfaces.train_boundary --data out/train3000 out/train5000 \\
+        out/s33/train/train-10[1-2][0-9] --val out/s33/train/val --out out/s33/train/bnet2 --epochs 8 \\
+        --lr 3e-4 --threads 2 --init out/s33/train/bnet/boundary_net.pt
+    cp out/s33/train/bnet2/boundary_net.* layout/surfaces/weights/
 
 Training: Adam with a cosine learning rate, batches of full panoramas at the
 working size (512x256), L1 loss on both boundaries (rows / height), the GC
