@@ -101,6 +101,9 @@ __all__ = [
 
 UNKNOWN, FLOOR, CEILING, WALL_X, WALL_Y, OBJECT = 0, 1, 2, 3, 4, 5
 _EPS = 1e-6
+#: Default weights of the orientation chain in :func:`fuse_surfaces` (and :func:`estimate_surfaces`): OM votes,
+#: boundary shape, change of wall (:func:`column_orientation`).
+_OM_WEIGHT, _SHAPE_WEIGHT, _SWITCH_COST = 3.0, 1.0, 20.0
 
 
 @dataclass(frozen=True)
@@ -436,9 +439,10 @@ def column_orientation(heading: ArrayLike, floor_lat: ArrayLike, ceiling_lat: Ar
 
 
 def fuse_surfaces(gc_probs: ArrayLike, om: OrientationMap, axes: ArrayLike | None = None,
-                  object_mask: ArrayLike | None = None, *, min_confidence: float = 0.5, om_weight: float = 3.0,
-                  shape_weight: float = 1.0, switch_cost: float = 20.0,
-                  warnings: tuple[str, ...] = (), room_boundaries: ArrayLike | None = None) -> SurfaceLabels:
+                  object_mask: ArrayLike | None = None, *, min_confidence: float = 0.5,
+                  om_weight: float = _OM_WEIGHT, shape_weight: float = _SHAPE_WEIGHT,
+                  switch_cost: float = _SWITCH_COST,
+                  warnings: tuple[str, ...] = (), empty_room_rows: ArrayLike | None = None) -> SurfaceLabels:
     """Fuse geometric context and an orientation map into surface labels (steps 2, 4, 5 of the module docstring).
 
     Parameters
@@ -459,7 +463,7 @@ def fuse_surfaces(gc_probs: ArrayLike, om: OrientationMap, axes: ArrayLike | Non
         change of wall, in the orientation chain (:func:`column_orientation`).
     warnings : tuple of str
         Carried into the result.
-    room_boundaries : (2, W) float, optional
+    empty_room_rows : (2, W) float, optional
         Ceiling and floor boundary rows of the empty room in every column
         (e.g. the boundary network's, :mod:`layout.surfaces.boundary_net`):
         the orientation chain reads the walls' shape from them, at full
@@ -480,9 +484,20 @@ def fuse_surfaces(gc_probs: ArrayLike, om: OrientationMap, axes: ArrayLike | Non
                          f"{getattr(getattr(om, 'labels', None), 'shape', type(om).__name__)}")
     A = _upright_axes(axes)
     obj = pixel_mask(object_mask, (H, W), "object_mask")
-    warn = list(warnings)
     # 2. column boundaries
     ceil_v, floor_v = column_boundaries(P, obj)
+    return _fuse(P, om, A, obj, ceil_v, floor_v, min_confidence=min_confidence, om_weight=om_weight,
+                 shape_weight=shape_weight, switch_cost=switch_cost, warnings=warnings,
+                 empty_room_rows=empty_room_rows)
+
+
+def _fuse(P: NDArray[np.float32], om: OrientationMap, A: NDArray[np.float64], obj: NDArray[np.bool_] | None,
+          ceil_v: NDArray[np.float64], floor_v: NDArray[np.float64], *, min_confidence: float, om_weight: float,
+          shape_weight: float, switch_cost: float, warnings: tuple[str, ...],
+          empty_room_rows: ArrayLike | None) -> SurfaceLabels:
+    """Steps 4 and 5 of :func:`fuse_surfaces` on checked inputs and GC's column boundaries (step 2)."""
+    H, W = P.shape[:2]
+    warn = list(warnings)
     rows = np.arange(H)[:, None]
     gc_arg = np.argmax(P, axis=2)
     if obj is not None:
@@ -508,12 +523,12 @@ def fuse_surfaces(gc_probs: ArrayLike, om: OrientationMap, axes: ArrayLike | Non
     n_band = np.maximum(in_band.sum(axis=0), 1)
     om_x = ((om.labels == WALL_X) & in_band).sum(axis=0) / n_band
     om_y = ((om.labels == WALL_Y) & in_band).sum(axis=0) / n_band
-    if room_boundaries is None:
+    if empty_room_rows is None:
         shape_c, shape_f, shape_cw, shape_fw = ceil_v, floor_v, cw, fw
     else:
-        rb = np.asarray(room_boundaries, dtype=np.float64)
+        rb = np.asarray(empty_room_rows, dtype=np.float64)
         if rb.shape != (2, W) or not np.all(np.isfinite(rb)):
-            raise ValueError(f"room_boundaries: expected finite (2, {W}) rows, got shape {rb.shape}")
+            raise ValueError(f"empty_room_rows: expected finite (2, {W}) rows, got shape {rb.shape}")
         shape_c, shape_f, shape_cw, shape_fw = rb[0], rb[1], np.ones(W), np.ones(W)
     col = column_orientation(psi, lat_of(shape_f), lat_of(shape_c), shape_fw, shape_cw, om_x, om_y, height=H,
                              om_weight=om_weight, shape_weight=shape_weight, switch_cost=switch_cost)
@@ -618,7 +633,7 @@ def estimate_surfaces(pano: ArrayLike, segments: LineSegments | None = None, axe
         warning then says the labels' boundary was kept, and GC's boundaries
         give the walls' shape). Where kept, its ceiling and floor boundaries
         are also the walls' shape evidence of the orientation chain
-        (``fuse_surfaces(room_boundaries=...)``). Not together with
+        (``fuse_surfaces(empty_room_rows=...)``). Not together with
         ``snap_ceiling``.
 
     Returns
@@ -665,14 +680,18 @@ def estimate_surfaces(pano: ArrayLike, segments: LineSegments | None = None, axe
 
         net = load_boundary_net() if ceiling_net is True else ceiling_net
         net_v = net(img)
-        gap = float(np.median(np.abs(net_v[0] - column_boundaries(probs, obj)[0]))) * 512.0 / H
+    gc_ceil_v, gc_floor_v = column_boundaries(probs, obj)  # step 2 once: the network's check and the fusion
+    if net_v is not None:
+        gap = float(np.median(np.abs(net_v[0] - gc_ceil_v))) * 512.0 / H
         if not gap <= CEILING_NET_MAX_GAP_512:
             warn.append(f"boundary network: its ceiling-wall boundary is {gap:.1f} rows (of 512) from the labels' in "
                         f"the median column (at most {CEILING_NET_MAX_GAP_512:g} expected): the panorama looks "
                         f"unlike its training rooms, the labels' boundary is kept")
             net_v = None
-    fused = fuse_surfaces(probs, om, A, obj, min_confidence=min_confidence, warnings=tuple(warn),
-                          room_boundaries=net_v)
+    fused = _fuse(np.asarray(probs, dtype=np.float32), om, A, obj, gc_ceil_v, gc_floor_v,
+                  min_confidence=min_confidence, om_weight=_OM_WEIGHT, shape_weight=_SHAPE_WEIGHT,
+                  switch_cost=_SWITCH_COST,
+                  warnings=tuple(warn), empty_room_rows=net_v)
     if net_v is None and not snap_ceiling:
         return fused
     cols = fused.columns

@@ -108,13 +108,13 @@ def test_the_empty_room_boundaries_orient_the_walls_that_objects_hide(cam):
         obj[:, band] = True
         gc_only = fuse_surfaces(oracle_probs(truth), empty_om(H, W), object_mask=obj)
         empty = fuse_surfaces(oracle_probs(truth), empty_om(H, W), object_mask=obj,
-                              room_boundaries=np.stack([rb.ceil_v, rb.floor_v]))
+                              empty_room_rows=np.stack([rb.ceil_v, rb.floor_v]))
         assert np.mean(empty.columns.wall_label[band] == rb.wall_label[band]) > 0.94
         assert np.mean(gc_only.columns.wall_label[band] == rb.wall_label[band]) < 0.75
         # the labels' own boundaries still come from GC
         assert np.array_equal(empty.columns.ceiling_v, gc_only.columns.ceiling_v)
-    with pytest.raises(ValueError, match="room_boundaries"):
-        fuse_surfaces(oracle_probs(truth), empty_om(H, W), room_boundaries=np.zeros((2, W - 1)))
+    with pytest.raises(ValueError, match="empty_room_rows"):
+        fuse_surfaces(oracle_probs(truth), empty_om(H, W), empty_room_rows=np.zeros((2, W - 1)))
 
 
 def test_column_orientation_follows_the_om_where_the_boundaries_say_nothing():
