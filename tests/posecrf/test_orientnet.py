@@ -215,3 +215,11 @@ def test_main_holds_out_the_last_folders_last_rooms(tmp_path):
     assert set(rec["validation"]) == {"tv"}
     assert load_orientation_net(out).module is not None
     assert main(["--rooms", str(tmp_path / "none"), "--out", str(out)]) == 2
+    # a fine-tuning run starts from given weights: with no learning it ends where they are
+    tuned = tmp_path / "w" / "tuned.pt"
+    assert main(args[:3] + ["--out", str(tuned)] + args[5:] + ["--init", str(out), "--lr", "1e-12"]) == 0
+    assert json.loads(tuned.with_suffix(".json").read_text())["init"] == str(out)
+    a, b = load_orientation_net(out).module.state_dict(), load_orientation_net(tuned).module.state_dict()
+    assert all(np.allclose(a[k].numpy(), b[k].numpy(), atol=1e-6) for k in a if a[k].is_floating_point()
+               and "running" not in k)
+    assert main(args[:3] + ["--out", str(tuned)] + args[5:] + ["--init", str(tmp_path / "none.pt")]) == 2
