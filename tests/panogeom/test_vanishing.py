@@ -9,7 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from panogeom.coords import pixel_to_ray, ray_to_pixel
@@ -141,6 +141,7 @@ def manhattan_arcs(R, n_per_axis=15, outliers=10, seed=0, noise=0.0):
 @settings(max_examples=30, deadline=None)
 @given(yaw=st.floats(-np.pi, np.pi), pitch=st.floats(-0.35, 0.35), roll=st.floats(-0.35, 0.35),
        seed=st.integers(0, 1000))
+@example(yaw=0.21484375, pitch=-0.140625, roll=-0.140625, seed=552)  # outliers move the heading by 0.0504 deg
 def test_exact_arcs_give_the_exact_frame(yaw, pitch, roll, seed):
     R = rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)  # camera -> world; rows: world axes in the camera
     f = estimate_manhattan_frame(manhattan_arcs(R, seed=seed, outliers=0))
@@ -153,10 +154,12 @@ def test_exact_arcs_give_the_exact_frame(yaw, pitch, roll, seed):
     assert A[0] @ ex >= max(abs(A[1] @ ex), -(A[0] @ ex)) - 1e-12
     assert f.counts.tolist() == [15, 15, 15] and f.rmse < 1e-6
     assert np.all(f.significance > 8.0)
-    # random outliers, some of which pass near an axis by chance, barely move it
+    # random outliers, some of which pass near an axis by chance (and count as its inliers), barely move it: by up to
+    # about 0.05 deg in 1500 random cases of these ranges (the bound had been 0.05 deg, which an example found by
+    # hypothesis passed with 0.0504 deg of heading error; now twice the observed tail)
     g = estimate_manhattan_frame(manhattan_arcs(R, seed=seed, outliers=15))
-    assert vertical_error_deg(g.axes, R) < 0.05 and heading_error_deg(g.axes, R) < 0.05
-    assert np.allclose(g.axes, A, atol=1e-3)
+    assert vertical_error_deg(g.axes, R) < 0.1 and heading_error_deg(g.axes, R) < 0.1
+    assert np.allclose(g.axes, A, atol=2e-3)
 
 
 def test_noisy_arcs_are_refined_beyond_the_noise():
