@@ -140,6 +140,9 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
                    help="the room as the room step put it from the labels, or each wall moved onto the image's "
                         "ceiling-wall crease where it shows a clear one (within 25 %% of its distance), the ceiling "
                         "height onto the walls that show both creases")
+    p.add_argument("--object-mask", choices=["tiles", "box"], default="tiles",
+                   help="what of each detection the surface labels and the room step leave out: the region inside "
+                        "all the tile boxes that see it whole, or its whole panorama box")
     p.add_argument("--seed", type=int, default=0, help="seed of the sampler")
     p.add_argument("--size", type=int, default=1024, help="working width in pixels (larger inputs are downscaled)")
     p.add_argument("--no-objects", action="store_true", help="layout only: no detection, pose or sampling of objects")

@@ -11,6 +11,8 @@ camera height, so the layout can be compared.
 
 from __future__ import annotations
 
+import dataclasses
+
 import multiprocessing as mp
 import os
 import traceback
@@ -117,10 +119,7 @@ def run(args) -> int:
             raise UserError("--detector annotations:FILE names one file; for each room's gt.json use --detector gt-boxes")
         out = pred = prepare_out_dir(args.out or "out/eval")
         o = options_from_args(args)
-        opts = {"camera_height": o.camera_height, "detector": o.detector, "samples": o.samples, "seed": o.seed,
-                "objects": o.objects, "sampler_mode": o.sampler_mode,
-                "model_choice": o.model_choice, "crop": o.crop, "orientation": o.orientation,
-                "box_edges": o.box_edges, "ceiling": o.ceiling, "walls": o.walls, "size": args.size, "gt_scale": bool(getattr(args, "gt_scale", False))}
+        opts = {**dataclasses.asdict(o), "size": args.size, "gt_scale": bool(getattr(args, "gt_scale", False))}
         if opts["gt_scale"] and o.camera_height is not None:
             raise UserError("--gt-scale and --camera-height both fix the scale: give one")
         jobs = max(1, min(args.jobs or os.cpu_count() or 1, len(rooms)))

@@ -27,7 +27,7 @@ def options_from_args(args):
                       seed=args.seed, objects=not args.no_objects, sampler_mode=args.sampler,
                       model_choice=args.models, crop=args.crop,
                       orientation=args.orientation, box_edges=args.box_edges, ceiling=args.ceiling,
-                      walls=args.walls)
+                      walls=args.walls, object_mask=args.object_mask)
 
 
 def write_outputs(result, out: Path, image_name: str) -> dict[str, Path]:

@@ -11,7 +11,9 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
    (``detect.grabcut``) are not used for the pose crops: on synthetic rooms
    they made the pose CRF worse than plain box crops
 4. surface labels: orientation map + geometric context, objects masked
-   (:mod:`layout.surfaces`); not in the paper, the ceiling-wall boundary
+   (:mod:`layout.surfaces`; each detection's region inside all the tile
+   boxes that see it whole, :func:`object_mask`, ``RunOptions.object_mask``);
+   not in the paper, the ceiling-wall boundary
    moved onto the one the boundary network regresses per column
    (:mod:`layout.surfaces.boundary_net`, ``RunOptions.ceiling``)
 5. room geometry from the labels: Manhattan floor polygon and wall height,
@@ -71,6 +73,8 @@ BOX_EDGE_MODES = ("silhouette", "detector")
 CEILING_MODES = ("labels", "network")
 #: ``RunOptions.walls``: walls where the labels put them, or moved onto the image's ceiling-wall edges.
 WALL_MODES = ("edges", "labels")
+#: ``RunOptions.object_mask``: what the labeller and the room step mask of each detection.
+OBJECT_MASK_MODES = ("tiles", "box")
 #: Weight of the orientation network's cost ``-log(n_bins p)`` added to E_o (``RunOptions.orientation="net"``);
 #: chosen on the tuning seeds 7000 and 8000 among 0.1 and 0.3 (docs/EVALUATION.md, session 10). Over the yaws of
 #: one crop the cost spans about 9, E_o (HOG distance) about 0.3 (``benchmarks/eval_orientnet.py vs-hog``). With the
@@ -128,6 +132,10 @@ class RunOptions:
         ceiling curves fixed) scales onto the floor-wall edges where they show
         (:func:`layout.wallsnap.snap_ceiling_height`; both in :func:`layout.wallsnap.snap_room`); ``"labels"``: the
         room as the room step put it.
+    object_mask : str
+        What of each detection the surface labeller, the room step and the wall snaps mask as object
+        (:func:`object_mask`): ``"tiles"`` (default) the region inside all the tile boxes that see it whole,
+        ``"box"`` its whole panorama box (the lon/lat extent, larger where a tile is turned or pitched).
     """
 
     camera_height: float | None = None
@@ -142,8 +150,11 @@ class RunOptions:
     box_edges: str = "silhouette"
     ceiling: str = "network"
     walls: str = "edges"
+    object_mask: str = "tiles"
 
     def __post_init__(self) -> None:
+        if self.object_mask not in OBJECT_MASK_MODES:
+            raise ValueError(f"object_mask: expected one of {OBJECT_MASK_MODES}, got {self.object_mask!r}")
         if self.walls not in WALL_MODES:
             raise ValueError(f"walls: expected one of {WALL_MODES}, got {self.walls!r}")
         if self.ceiling not in CEILING_MODES:
@@ -236,17 +247,27 @@ def _detect(image: np.ndarray, upright: np.ndarray, rect, spec: str, prog: Progr
     return dets, candidates
 
 
-def _object_mask(dets: list, shape: tuple[int, int]) -> np.ndarray:
-    """(H, W) bool: the detections' panorama boxes, masked for the labeller and the room step.
+def object_mask(dets: list, shape: tuple[int, int], mode: str = "tiles") -> np.ndarray:
+    """(H, W) bool: the detections' pixels masked for the labeller, the room step and the wall snaps.
 
-    The whole lon/lat extent ``box``, not only the region a tile box bounds (``boxes_mask(planes=...)``): the
-    tighter mask raised the synthetic tuning sets' layout 3D IoU (0.742 -> 0.756) but broke the hotel panorama's
-    (0.665 -> 0.173), whose labels around the furniture are poor (docs/EVALUATION.md, session 5)."""
+    ``mode="tiles"``: each tile detection's region inside every tile box that sees it whole
+    (``Detection.edge_planes``: the object lies inside each of them, so inside their intersection), bounded by
+    its panorama box; a detection without a tile (boxes read from a file) masks its panorama box.
+    ``mode="box"``: every detection's whole panorama box, the lon/lat extent of its tile box, which is larger
+    wherever the tile is turned or pitched. The tighter mask leaves the room step more of the walls next to the
+    furniture: on the synthetic tuning sets (seeds 7000 and 8000) the layout 3D IoU rose 0.878 -> 0.884 and the
+    room step on the run's labels 0.895 / 0.912 -> 0.898 / 0.914 (docs/EVALUATION.md, "Session 35"). In session 5
+    a tighter mask (the detection's own tile region) broke the hotel panorama's room (3D IoU 0.665 -> 0.173); with
+    the room step of session 35 both real panoramas score the same with either mask.
+    """
     from layout.likelihood import boxes_mask
 
+    if mode not in OBJECT_MASK_MODES:
+        raise ValueError(f"mode: expected one of {OBJECT_MASK_MODES}, got {mode!r}")
     if not dets:
         return np.zeros(shape, bool)
-    return boxes_mask(np.array([d.box for d in dets]), shape[1])
+    planes = [d.edge_planes() for d in dets] if mode == "tiles" else None
+    return boxes_mask(np.array([d.box for d in dets]), shape[1], planes=planes)
 
 
 def _outline(model, max_points: int = 400) -> np.ndarray:
@@ -495,7 +516,7 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
     if options.objects:
         with prog.stage("detect", f"object detection ({options.detector})"):
             dets, candidates = _detect(image, upright, rect, options.detector, prog)
-    obj_mask = _object_mask(dets, (H, W))
+    obj_mask = object_mask(dets, (H, W), options.object_mask)
     ceiling_net = options.ceiling == "network"
 
     with prog.stage("surfaces", "surface labels (orientation map + geometric context)"):

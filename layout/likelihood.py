@@ -148,8 +148,8 @@ def _resample_labels(labels: NDArray[np.uint8], width: int) -> NDArray[np.uint8]
 def _box_masks(boxes: ArrayLike | None, width: int, box_width: float | None,
                planes: Sequence[ArrayLike | None] | None = None) -> NDArray[np.bool_]:
     """(K, H, W) pixel-centre masks of K panorama boxes, checked; with ``planes[k]`` ((4, 3) inward unit normals of
-    great circles through the camera, e.g. ``DetectedObject.edge_planes``) box k's mask keeps only the pixels
-    on the inner side of all four."""
+    great circles through the camera, e.g. ``DetectedObject.edge_planes``; or (V, 4, 3), the boxes of V views)
+    box k's mask keeps only the pixels on the inner side of all of them."""
     w = _working_width(width)
     h = w // 2
     if boxes is None:
@@ -175,11 +175,14 @@ def _box_masks(boxes: ArrayLike | None, width: int, box_width: float | None,
         out[k] = rows[:, None] & cols[None, :]
         if planes is not None and planes[k] is not None:
             n = np.asarray(planes[k], dtype=np.float64)
-            if n.shape != (4, 3) or not np.all(np.isfinite(n)):
-                raise ValueError(f"planes[{k}]: expected a finite (4, 3) array of plane normals, got shape {n.shape}")
+            if n.ndim not in (2, 3) or n.shape[-2:] != (4, 3) or n.size == 0 or not np.all(np.isfinite(n)):
+                raise ValueError(f"planes[{k}]: expected a finite (4, 3) or (V, 4, 3) array of plane normals, got "
+                                 f"shape {n.shape}")
+            n = n.reshape(-1, 3)
             if rays is None:
                 rays = pixel_grid_rays(w, h)
-            out[k] &= np.all(rays @ n.T >= 0.0, axis=-1)
+            inside = out[k]  # only the box's pixels can be in its region
+            inside[inside] = np.all(rays[inside] @ n.T >= 0.0, axis=-1)
     return out
 
 
@@ -196,9 +199,11 @@ def boxes_mask(boxes: ArrayLike | None, width: int, *, box_width: float | None =
         Width W of the mask (even).
     box_width : float, optional
         Width of the panorama the boxes refer to (default ``width``).
-    planes : sequence of (4, 3) float or None, optional
+    planes : sequence of (4, 3) or (V, 4, 3) float or None, optional
         Per box, the inward normals of the great circles that bound the
-        region inside it (as :func:`observe_labels`' ``box_planes``).
+        region inside it (as :func:`observe_labels`' ``box_planes``); with
+        (V, 4, 3), the region inside all V boxes (an object seen whole in V
+        tiles lies inside each of its tile boxes).
 
     Returns
     -------

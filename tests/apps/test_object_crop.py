@@ -43,3 +43,33 @@ def test_run_options_refuse_an_unknown_crop_mode():
     assert RunOptions().crop == "tile" and RunOptions(crop="box").crop == "box"
     with pytest.raises(ValueError, match="crop"):
         RunOptions(crop="mask")
+
+
+def test_the_object_mask_is_the_intersection_of_the_tile_regions_inside_the_panorama_box():
+    from layout.likelihood import boxes_mask
+    from apps.pipeline import object_mask
+
+    det = _detection()
+    # a second view of the same object, from a tile turned the other way: its box region differs from the first's
+    other = TileBox(PinholeView(yaw=0.7, pitch=-0.5, roll=0.0, fov=math.radians(90.0), width=416, height=416),
+                    [160.0, 130.0, 330.0, 290.0])
+    seen_twice = Detection("chair", 0.9, det.box, 1024, 512, tile=det.tile, views=(det.tile, other))
+    plain = Detection("table", 0.5, [700.0, 300.0, 760.0, 340.0], 1024, 512)  # from a file: no tile
+    box = object_mask([det, plain], (512, 1024), "box")
+    np.testing.assert_array_equal(box, boxes_mask(np.array([det.box, plain.box]), 1024))
+    one = object_mask([det], (512, 1024))
+    two = object_mask([seen_twice], (512, 1024))
+    # the tile region is inside the panorama box and clearly smaller (the tile is pitched)
+    own = boxes_mask(np.array([det.box]), 1024)
+    assert one.any() and not (one & ~own).any() and one.sum() < 0.9 * own.sum()
+    # with two views: the pixels inside both tile boxes
+    np.testing.assert_array_equal(two, one & boxes_mask(np.array([det.box]), 1024, planes=[other.edge_planes()]))
+    assert 0 < two.sum() < one.sum()
+    # a detection without a tile masks its panorama box in either mode
+    np.testing.assert_array_equal(object_mask([plain], (512, 1024)), boxes_mask(np.array([plain.box]), 1024))
+    assert not object_mask([], (512, 1024)).any()
+    with pytest.raises(ValueError, match="mode: expected one of"):
+        object_mask([det], (512, 1024), "silhouette")
+    assert RunOptions().object_mask == "tiles"
+    with pytest.raises(ValueError, match="object_mask: expected one of"):
+        RunOptions(object_mask="silhouette")

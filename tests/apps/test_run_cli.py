@@ -182,6 +182,31 @@ def test_box_edges_move_onto_the_silhouettes_unless_told_not_to(tmp_path, room_p
         RunOptions(box_edges="grabcut")
 
 
+def test_object_mask_from_the_tile_regions_or_the_panorama_boxes(tmp_path, room_png, monkeypatch):
+    """`--object-mask tiles` (default) leaves out of the labels only the region inside each detection's tile
+    boxes; `--object-mask box` the whole panorama boxes, a superset; the labels the run writes differ."""
+    pytest.importorskip("torch")
+    import apps.pipeline as pl
+
+    masks = {}
+    real = pl.object_mask
+
+    def spy(dets, shape, mode="tiles"):
+        masks[mode] = real(dets, shape, mode)
+        return masks[mode]
+
+    monkeypatch.setattr(pl, "object_mask", spy)
+    labels = {}
+    for mode in ("tiles", "box"):
+        out = tmp_path / mode
+        assert main(["run", str(room_png / "pano.png"), "--out", str(out), "--size", "512", "--samples", "20",
+                     "--quiet", "--object-mask", mode]) == 0
+        labels[mode] = np.array(Image.open(out / "label_ids.png"))
+    assert set(masks) == {"tiles", "box"} and masks["tiles"].any()
+    assert not (masks["tiles"] & ~masks["box"]).any() and masks["tiles"].sum() < masks["box"].sum()
+    assert (labels["tiles"] == 5).sum() < (labels["box"] == 5).sum()
+
+
 def test_ceiling_boundary_from_the_boundary_network_or_the_labels(tmp_path, room_png, monkeypatch):
     """`--ceiling network` moves the labels' ceiling-wall boundary onto the boundary network's before the room
     step; `--ceiling labels` keeps the fused labels' own; a bad mode is refused."""

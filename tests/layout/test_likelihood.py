@@ -76,6 +76,32 @@ def test_boxes_mask_scaling_and_seam():
         boxes_mask([[1, 2, 3]], 8)
 
 
+def _plane_box(lon0, lon1, lat0, lat1):
+    """(4, 3) inward normals of the great circles through the meridians lon0 < lon1 and two tilted circles that
+    cross the centre meridian at lat0 < lat1 (the edges of a box seen by a pinhole view looking along x)."""
+    def meridian(lon):  # plane through the camera and the z axis at longitude lon (conventions: y = -sin lon)
+        return np.array([np.sin(lon), np.cos(lon), 0.0])
+    def tilted(lat):  # plane through the y axis, tilted to cross lon = 0 at latitude lat
+        return np.array([-np.sin(lat), 0.0, np.cos(lat)])
+    return np.array([-meridian(lon0), -tilted(lat1), meridian(lon1), tilted(lat0)])
+
+
+def test_boxes_mask_with_the_planes_of_several_views_keeps_their_intersection():
+    W = 128
+    box = np.array([[40.0, 20.0, 90.0, 50.0]])
+    a = _plane_box(-0.9, 0.5, -0.5, 0.3)
+    b = _plane_box(-0.3, 1.0, -0.2, 0.6)
+    ma, mb = boxes_mask(box, W, planes=[a]), boxes_mask(box, W, planes=[b])
+    both = boxes_mask(box, W, planes=[np.stack([a, b])])
+    assert ma.any() and mb.any() and (ma & ~mb).any() and (mb & ~ma).any()  # neither holds the other
+    np.testing.assert_array_equal(both, ma & mb)
+    assert both.sum() < min(ma.sum(), mb.sum()) and not (both & ~boxes_mask(box, W)).any()
+    with pytest.raises(ValueError, match=r"planes\[0\]: expected a finite \(4, 3\) or \(V, 4, 3\)"):
+        boxes_mask(box, W, planes=[np.zeros((3, 3))])
+    with pytest.raises(ValueError, match=r"planes\[0\]"):
+        boxes_mask(box, W, planes=[np.zeros((0, 4, 3))])
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.floats(0.6, 4.0), st.floats(-np.pi, np.pi), st.floats(0, 2 * np.pi), st.floats(0.1, 2.0),
        st.floats(0.1, 2.0), st.floats(0.1, 2.2), st.floats(0.0, 1.0), st.floats(1.0, 2.0))
