@@ -36,6 +36,17 @@ def _fmt():
 DEMO_SEED = 1
 
 
+def _seed(text: str) -> int:
+    """argparse type of the ``--seed`` options: an integer >= 0 (numpy's generators refuse negative seeds)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {value}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog=PROG, description="One 360-degree indoor panorama to a CAD model of the room.",
                 formatter_class=_fmt())
@@ -45,7 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
     d = sub.add_parser("demo", help="run the toolkit on an embedded generated panorama into out/demo/",
                        formatter_class=_fmt())
     d.add_argument("--out", default="out/demo", help="output folder")
-    d.add_argument("--seed", type=int, default=DEMO_SEED,
+    d.add_argument("--seed", type=_seed, default=DEMO_SEED,
                    help="random seed of the generated room (and of the pipeline's sampler)")
     d.add_argument("--size", type=int, default=1024, help="panorama width in pixels")
     d.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -73,7 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("synth", help="generate synthetic rooms with ground truth (panorama, labels, depth, gt.json)",
                        formatter_class=_fmt())
     s.add_argument("--rooms", type=int, default=88, help="number of rooms")
-    s.add_argument("--seed", type=int, default=0, help="seed of the set (room i depends only on seed and i)")
+    s.add_argument("--seed", type=_seed, default=0, help="seed of the set (room i depends only on seed and i)")
     s.add_argument("--size", type=int, default=1024, help="panorama width in pixels")
     s.add_argument("--out", required=True, help="output folder (one sub-folder per room, plus index.json)")
     s.add_argument("--jobs", type=int, default=0, help="worker processes (0: one per core)")
@@ -143,7 +154,7 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--object-mask", choices=["tiles", "box"], default="tiles",
                    help="what of each detection the surface labels and the room step leave out: the region inside "
                         "all the tile boxes that see it whole, or its whole panorama box")
-    p.add_argument("--seed", type=int, default=0, help="seed of the sampler")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the sampler")
     p.add_argument("--size", type=int, default=1024, help="working width in pixels (larger inputs are downscaled)")
     p.add_argument("--no-objects", action="store_true", help="layout only: no detection, pose or sampling of objects")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")

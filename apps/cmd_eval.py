@@ -106,6 +106,8 @@ def run(args) -> int:
     from .cmd_run import check_options, options_from_args
     from .evaluation import jsonable, load_json, markdown_table2, score_room, summarize
 
+    if args.limit < 0:
+        raise UserError(f"--limit: expected a number of rooms >= 0 (0: all), got {args.limit}")
     data = Path(args.data)
     rooms = _rooms(data)[: args.limit or None]
     prog = Progress(args.quiet)

@@ -57,6 +57,28 @@ def test_views_writes_cubemap_and_views(tmp_path, capsys):
     assert len(printed) == 4
 
 
+@pytest.mark.parametrize("command", [["run", "pano.png"], ["demo"], ["synth", "--rooms", "1"], ["eval", "--data", "d"],
+                                     ["batch", "pano.png"]])
+@pytest.mark.parametrize("seed", ["-1", "x"])
+def test_a_negative_seed_is_a_usage_error(tmp_path, capsys, command, seed):
+    """Numpy's generators refuse negative seeds: every --seed is checked when the command line is read (an eval with
+    --seed -1 used to run all its rooms and fail each one in the sampler; run, demo and synth ended with an internal
+    error)."""
+    assert main(command + ["--out", str(tmp_path / "o"), "--seed", seed]) == 2
+    err = capsys.readouterr().err
+    assert f"argument --seed: expected an integer >= 0, got {seed if seed == '-1' else repr(seed)}" in err
+    assert "Traceback" not in err and not (tmp_path / "o").exists()
+
+
+def test_eval_refuses_a_negative_limit(tmp_path, capsys):
+    (tmp_path / "d" / "room-0000").mkdir(parents=True)
+    (tmp_path / "d" / "room-0000" / "gt.json").write_text("{}")
+    assert main(["eval", "--data", str(tmp_path / "d"), "--out", str(tmp_path / "o"), "--limit", "-1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["pano2cad: error: --limit: expected a number of rooms >= 0 (0: all), got -1"]
+    assert not (tmp_path / "o").exists()
+
+
 def test_views_bad_fov(tmp_path):
     Image.fromarray(np.zeros((64, 128, 3), np.uint8)).save(tmp_path / "p.png")
     assert main(["views", str(tmp_path / "p.png"), "--out", str(tmp_path / "o"), "--fov-deg", "180"]) == 2
