@@ -12,7 +12,6 @@ camera height, so the layout can be compared.
 from __future__ import annotations
 
 import dataclasses
-
 import multiprocessing as mp
 import os
 import traceback

@@ -257,8 +257,8 @@ def object_mask(dets: list, shape: tuple[int, int], mode: str = "tiles") -> np.n
     wherever the tile is turned or pitched. The tighter mask leaves the room step more of the walls next to the
     furniture: on the synthetic tuning sets (seeds 7000 and 8000) the layout 3D IoU rose 0.878 -> 0.884 and the
     room step on the run's labels 0.895 / 0.912 -> 0.898 / 0.914 (docs/EVALUATION.md, "Session 35"). In session 5
-    a tighter mask (the detection's own tile region) broke the hotel panorama's room (3D IoU 0.665 -> 0.173); with
-    the room step of session 35 both real panoramas score the same with either mask.
+    a tighter mask (the detection's own tile region) broke the hotel panorama's room (3D IoU 0.665 -> 0.173); in
+    the pipeline of session 35 both real panoramas score the same with either mask.
     """
     from layout.likelihood import boxes_mask
 
