@@ -18,7 +18,7 @@ from layout.likelihood import (
     surface_likelihood,
     yaw_bin_energy,
 )
-from panogeom.coords import pixel_grid_rays
+from panogeom.coords import lonlat_to_ray, pixel_grid_rays
 from panogeom.project import world_box_to_pano
 
 ROOM = np.array([[-2.0, -1.5], [3.0, -1.5], [3.0, 2.5], [-2.0, 2.5]])
@@ -76,21 +76,21 @@ def test_boxes_mask_scaling_and_seam():
         boxes_mask([[1, 2, 3]], 8)
 
 
-def _plane_box(lon0, lon1, lat0, lat1):
-    """(4, 3) inward normals of the great circles through the meridians lon0 < lon1 and two tilted circles that
-    cross the centre meridian at lat0 < lat1 (the edges of a box seen by a pinhole view looking along x)."""
-    def meridian(lon):  # plane through the camera and the z axis at longitude lon (conventions: y = -sin lon)
-        return np.array([np.sin(lon), np.cos(lon), 0.0])
-    def tilted(lat):  # plane through the y axis, tilted to cross lon = 0 at latitude lat
-        return np.array([-np.sin(lat), 0.0, np.cos(lat)])
-    return np.array([-meridian(lon0), -tilted(lat1), meridian(lon1), tilted(lat0)])
+def _plane_box(lon0, lon1, lat0, lat1, tilt):
+    """(4, 3) inward normals of the great circles through consecutive corners of a quadrilateral on the sphere:
+    corners at (lon, lat) of panogeom's convention, the top and bottom edges tilted by ``tilt`` radians of latitude
+    from one side to the other (the edges of a box in a turned or pitched pinhole view)."""
+    corners = lonlat_to_ray(np.array([[lon0, lat0], [lon0, lat1], [lon1, lat1 + tilt], [lon1, lat0 + tilt]]))
+    normals = np.cross(corners, np.roll(corners, -1, axis=0))
+    centre = corners.sum(axis=0)
+    return normals * np.where(normals @ centre < 0, -1.0, 1.0)[:, None]
 
 
 def test_boxes_mask_with_the_planes_of_several_views_keeps_their_intersection():
     W = 128
     box = np.array([[40.0, 20.0, 90.0, 50.0]])
-    a = _plane_box(-0.9, 0.5, -0.5, 0.3)
-    b = _plane_box(-0.3, 1.0, -0.2, 0.6)
+    a = _plane_box(-0.9, 0.5, -0.5, 0.3, 0.1)
+    b = _plane_box(-0.3, 1.0, -0.2, 0.6, -0.15)
     ma, mb = boxes_mask(box, W, planes=[a]), boxes_mask(box, W, planes=[b])
     both = boxes_mask(box, W, planes=[np.stack([a, b])])
     assert ma.any() and mb.any() and (ma & ~mb).any() and (mb & ~ma).any()  # neither holds the other
