@@ -145,7 +145,10 @@ def move_ceiling_boundary(labels: ArrayLike, new_v: ArrayLike, wall_label: Array
     labels : (H, W) uint8
         Surface labels (CONVENTIONS.md ids).
     new_v : (W,) float
-        New boundary rows (NaN: column left alone).
+        New boundary rows in continuous pixel coordinates (the boundary
+        between pixel rows k - 1 and k is at k, as
+        :mod:`layout.surfaces.boundary_net` gives them; NaN: column left
+        alone).
     wall_label : (W,) uint8
         The column's wall label (3 or 4), given to ceiling pixels that end
         up below the boundary; other values leave those pixels alone.
@@ -153,9 +156,21 @@ def move_ceiling_boundary(labels: ArrayLike, new_v: ArrayLike, wall_label: Array
     Returns
     -------
     (H, W) uint8
-        Wall pixels (3, 4) above ``new_v`` become ceiling; ceiling pixels
-        between ``new_v`` and the horizon take ``wall_label``; every other
-        pixel is unchanged.
+        Wall pixels (3, 4) whose centre (row + 0.5) lies above ``new_v``
+        become ceiling; ceiling pixels whose centre lies below it, down to
+        the horizon, take ``wall_label``; every other pixel is unchanged.
+        A pixel is on the side of its centre, as in
+        :meth:`layout.labelmap.LabelCounts.agreement` (until session 36 a
+        pixel row r was ceiling for any ``r < new_v``: the boundary rounded
+        up, half a row low on average).
+
+    Examples
+    --------
+    >>> lab = np.full((8, 1), 3, np.uint8); lab[:2] = 2
+    >>> move_ceiling_boundary(lab, np.array([3.4]), np.array([3]))[:4, 0].tolist()
+    [2, 2, 2, 3]
+    >>> move_ceiling_boundary(lab, np.array([3.6]), np.array([3]))[:4, 0].tolist()
+    [2, 2, 2, 2]
     """
     lab = np.array(labels, dtype=np.uint8, copy=True)
     if lab.ndim != 2:
@@ -165,9 +180,10 @@ def move_ceiling_boundary(labels: ArrayLike, new_v: ArrayLike, wall_label: Array
     h, w = lab.shape
     if v.shape != (w,) or wl.shape != (w,):
         raise ValueError(f"new_v and wall_label: expected ({w},), got {v.shape} and {wl.shape}")
+    centres = np.arange(h)[:, None] + 0.5
     rows = np.arange(h)[:, None]
     ok = np.isfinite(v)
-    above = (rows < np.where(ok, v, -1.0)[None, :]) & ok[None, :]
+    above = (centres < np.where(ok, v, -1.0)[None, :]) & ok[None, :]
     lab[above & ((lab == WALL_X) | (lab == WALL_Y))] = CEILING
     fill = ok & np.isin(wl, (WALL_X, WALL_Y))
     below = ~above & (rows < h // 2) & (lab == CEILING) & fill[None, :]

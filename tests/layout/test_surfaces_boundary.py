@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from layout.labelmap import render_room_labels
+from layout.labelmap import labels_from_boundaries, render_room_labels, room_boundaries
 from layout.surfaces import estimate_surfaces
 from layout.surfaces.boundary import ceiling_edge_path, edge_strength, move_ceiling_boundary
 
@@ -80,6 +80,19 @@ def test_move_ceiling_boundary_relabels_only_ceiling_and_wall():
     nan_v = truth + 5
     nan_v[:50] = np.nan
     np.testing.assert_array_equal(move_ceiling_boundary(lab, nan_v, wall)[:, :50], lab[:, :50])
+
+
+def test_moved_boundary_splits_rows_at_pixel_centres_like_the_renderer():
+    # continuous boundary rows (the network's kind) put back into labels crept off them give the rendered labels:
+    # a pixel row is ceiling when its centre lies above the boundary (labels_from_boundaries' rule); rounding the
+    # boundary up instead leaves the rows whose centre is just below it ceiling
+    b = room_boundaries(L_ROOM, 2.7, [0.0, 0.0], 1.5, 512)
+    lab = labels_from_boundaries(b)
+    frac = b.ceil_v - np.floor(b.ceil_v)
+    assert np.count_nonzero((frac > 0.05) & (frac < 0.45)) > 50  # columns where the two rules differ
+    wall = lab[lab.shape[0] // 2 - 1]
+    crept = move_ceiling_boundary(lab, b.ceil_v + 4.0, wall)
+    np.testing.assert_array_equal(move_ceiling_boundary(crept, b.ceil_v, wall), lab)
 
 
 def test_bad_shapes_raise_value_errors():
