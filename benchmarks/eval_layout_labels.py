@@ -12,7 +12,11 @@ room step's default) and the pipeline's ``label_ids.png`` of the run
 (median ceiling, what the pipeline uses when objects are masked). The 3D IoU
 of both against gt.json (:func:`layout.metrics.score_layout`; a room the room
 step cannot solve scores 0 and is listed) separates the labeller's share of
-the layout error from the room step's.
+the layout error from the room step's. The ceiling-wall and floor-wall contact
+rows of the run's labels are compared with the generator's column by column
+(:func:`contact_row_errors`): a mean or median off zero is a bias of the
+labeller (session 36 found the ceiling half a row low, a rasterisation of the
+boundary network's rows).
 
 On the generator's labels, the rooms the room step gets worst are listed
 (``--worst``) with their corner counts and the columns where floor that the
@@ -45,6 +49,28 @@ def floor_beyond(labels: np.ndarray, mask: np.ndarray | None, floor: np.ndarray,
     return int(np.count_nonzero(seen.any(axis=0) & (top < wall_v - rows)))
 
 
+def contact_row_errors(truth: np.ndarray, labels: np.ndarray, skip: int = 2) -> dict[str, np.ndarray]:
+    """Ceiling-wall and floor-wall contact rows of ``labels`` minus those of ``truth`` (both (H, W) label maps,
+    read by :func:`layout.labelmap.observe_boundaries`), in the columns where both show the contact and the true row
+    does not jump within ``skip`` columns (a wall's end). Positive: the contact lies lower in the image. Returns
+    ``{"ceiling": (n_c,), "floor": (n_f,)}`` in rows."""
+    from layout.labelmap import observe_boundaries
+
+    ot, ol = observe_boundaries(truth), observe_boundaries(labels)
+    out = {}
+    for kind in ("ceiling", "floor"):
+        name = "ceil" if kind == "ceiling" else "floor"
+        tv, lv = getattr(ot, name + "_v"), getattr(ol, name + "_v")
+        ok = getattr(ot, name + "_contact") & getattr(ol, name + "_contact")
+        jump = np.abs(np.diff(tv, append=tv[:1])) > 1.5
+        near = jump.copy()
+        for k in range(1, skip + 1):
+            near |= np.roll(jump, k) | np.roll(jump, -k)
+        ok &= ~near
+        out[kind] = lv[ok] - tv[ok]
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     from PIL import Image
 
@@ -59,6 +85,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="list the rooms the labels cost most, and the rooms worst on the generator's labels")
     args = ap.parse_args(argv)
     rows, unsolved = [], []
+    contact: dict[str, list[np.ndarray]] = {"ceiling": [], "floor": []}
     for room in sorted(p for p in args.data.iterdir() if (p / "gt.json").is_file()):
         pred = args.run / room.name / "label_ids.png"
         if not pred.is_file():
@@ -81,15 +108,28 @@ def main(argv: list[str] | None = None) -> int:
                               camera_height=h, width=lab.shape[1])
             ious.append(sc.iou_3d)
             if path.name == "labels.png":
+                truth = lab
                 beyond = floor_beyond(lab, mask, np.asarray(g.floor), float(g.ceiling_z), h)
                 extra = (len(g.floor), len(gt["room"]["floor"]), beyond)
         rows.append((room.name, *ious, *extra))
+        if extra:
+            for kind, d in contact_row_errors(truth, lab).items():
+                contact[kind].append(d)
     if not rows:
         raise SystemExit(f"{args.run}: no label_ids.png of the rooms of {args.data}")
     a = np.array([r[1:3] for r in rows], float)
     print(f"{len(rows)} rooms, true camera height, gt boxes masked: mean 3D IoU on ground-truth labels "
           f"{a[:, 0].mean():.3f} (median {np.median(a[:, 0]):.3f}), on the run's labels {a[:, 1].mean():.3f} "
           f"(median {np.median(a[:, 1]):.3f})")
+    parts = []
+    for kind, ds in contact.items():
+        d = np.concatenate(ds) if ds else np.zeros(0)
+        if d.size:
+            parts.append(f"{kind} mean {d.mean():+.2f} median {np.median(d):+.2f}, {100 * np.mean(np.abs(d) > 2):.1f} % "
+                         f"more than 2 rows off ({d.size} columns)")
+    if parts:
+        print("contact rows of the run's labels minus the generator's (columns where both show one, away from wall "
+              "ends; + lower in the image): " + "; ".join(parts))
     gap = sorted(rows, key=lambda r: r[2] - r[1])[: args.worst]
     if unsolved:
         print(f"not solved by the room step (scored 0): {', '.join(unsolved)}")
