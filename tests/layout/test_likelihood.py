@@ -19,6 +19,7 @@ from layout.likelihood import (
     yaw_bin_energy,
 )
 from panogeom.coords import lonlat_to_ray, pixel_grid_rays
+from panogeom.lines import LineSegments
 from panogeom.project import world_box_to_pano
 
 ROOM = np.array([[-2.0, -1.5], [3.0, -1.5], [3.0, 2.5], [-2.0, 2.5]])
@@ -81,7 +82,7 @@ def _plane_box(lon0, lon1, lat0, lat1, tilt):
     corners at (lon, lat) of panogeom's convention, the top and bottom edges tilted by ``tilt`` radians of latitude
     from one side to the other (the edges of a box in a turned or pitched pinhole view)."""
     corners = lonlat_to_ray(np.array([[lon0, lat0], [lon0, lat1], [lon1, lat1 + tilt], [lon1, lat0 + tilt]]))
-    normals = np.cross(corners, np.roll(corners, -1, axis=0))
+    normals = LineSegments.from_endpoints(corners, np.roll(corners, -1, axis=0)).normals  # the edges' great circles
     centre = corners.sum(axis=0)
     return normals * np.where(normals @ centre < 0, -1.0, 1.0)[:, None]
 
