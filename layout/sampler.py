@@ -117,6 +117,7 @@ Convention:
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, field, replace
@@ -1361,6 +1362,21 @@ class _Problem:
         near, _ = _rect_distance(xy, yaw, size2)
         return inside & (near >= self.cfg.camera_clearance)
 
+    def _least_move(self, lam: float, xy: FloatArray, yaw: float, j: int) -> tuple[FloatArray, float] | None:
+        """Object ``j`` at ``xy (2,)``, ``yaw``: the cheapest move of :func:`_repair_moves` after which it is
+        inside the room and clear of the camera (others not considered), as (position, yaw); None if none."""
+        along, across, dist = _ray_frames(xy)
+        for da, dc, dy in _repair_moves():
+            for s in range(0, len(da), 4096):  # in chunks, cheapest first: most repairs stop in the first one
+                r = np.maximum(dist + da[s:s + 4096], 0.05)
+                pos = r[:, None] * along + dc[s:s + 4096, None] * across
+                yaws = yaw + dy[s:s + 4096]
+                fit = self.object_ok(np.full(len(r), lam), pos[:, None], yaws[:, None], which=j)[:, 0]
+                if np.any(fit):
+                    k = int(np.argmax(fit))
+                    return pos[k], float(yaws[k])
+        return None
+
     def repair(self, lam: float, xy: FloatArray, yaw: FloatArray,
                grow_scale: bool) -> tuple[float, FloatArray, FloatArray]:
         """A nearby hypothesis that satisfies the hard constraints, if a simple search finds one.
@@ -1369,10 +1385,12 @@ class _Problem:
         2. With ``grow_scale``, the scale grows (1 cm wall-height steps, up to
            the top of the range) to the smallest value at which the most
            objects fit in the room.
-        3. An object through a wall or on the camera slides along its
-           viewing ray, to the nearest distance where it fits; if none,
-           it also turns (up to 6 degrees) and moves sideways (up to
-           15 cm), the smallest change that fits.
+        3. An object through a wall or on the camera takes the least move
+           that fits (:func:`_repair_moves`): along its viewing ray (up to
+           3 m) and across it (up to 30 cm), priced (along / 0.1 m)^2 +
+           (across / 0.03 m)^2, so that a step of a few centimetres aside
+           wins over a long slide out of an arm; if none fits, it also
+           turns (up to 6 degrees).
         4. Of two overlapping objects, the farther one slides away from the
            camera (or, if it cannot, the nearer one towards it) by the
            smallest step that separates them.
@@ -1394,37 +1412,15 @@ class _Problem:
                                       np.broadcast_to(yaw, (len(grid), self.n))).sum(axis=1)
                 lam = float(grid[int(np.argmax(fits))])  # the smallest scale at which the most objects fit
         along, _, dist = _ray_frames(xy)
-        # candidate distances along each ray: the current one first, then alternately nearer and farther
-        offsets = np.concatenate([[0.0], np.ravel(np.column_stack([-np.arange(1, 301), np.arange(1, 301)]))]) * 0.01
         lam_a = np.array([lam])
         for _ in range(20):
             changed = False
             ok = self.object_ok(lam_a, xy[None], yaw[None])[0]
             for j in np.flatnonzero(~ok):
-                r = np.maximum(dist[j] + offsets, 0.05)
-                cand = np.broadcast_to(xy, (len(r), self.n, 2)).copy()
-                cand[:, j] = r[:, None] * along[j]
-                fit = self.object_ok(np.full(len(r), lam), cand[:, [j]], np.full((len(r), 1), yaw[j]), which=j)[:, 0]
-                if np.any(fit):
-                    k = int(np.argmax(fit))
-                    xy[j], dist[j], changed = cand[k, j], r[k], True
-                    continue
-                # no fit along the ray: search small turns and sideways moves too, least change first
-                da, dc, dy = np.meshgrid(np.arange(-15, 16) * 0.02, np.arange(-5, 6) * 0.03,
-                                         np.radians(np.arange(-6, 7)), indexing="ij")
-                da, dc, dy = da.ravel(), dc.ravel(), dy.ravel()
-                cost = (da / 0.1) ** 2 + (dc / 0.03) ** 2 + (dy / np.radians(2.0)) ** 2
-                order = np.argsort(cost, kind="stable")
-                da, dc, dy = da[order], dc[order], dy[order]
-                across = np.array([-along[j, 1], along[j, 0]])
-                cand = np.broadcast_to(xy, (len(da), self.n, 2)).copy()
-                cand[:, j] = xy[j] + da[:, None] * along[j] + dc[:, None] * across
-                yaws = np.broadcast_to(yaw, (len(da), self.n)).copy()
-                yaws[:, j] += dy
-                fit = self.object_ok(np.full(len(da), lam), cand[:, [j]], yaws[:, [j]], which=j)[:, 0]
-                if np.any(fit):
-                    k = int(np.argmax(fit))
-                    xy[j], yaw[j], changed = cand[k, j], yaws[k, j], True
+                move = self._least_move(lam, xy[j], yaw[j], j)
+                if move is not None:
+                    xy[j], yaw[j] = move
+                    changed = True
                     along, _, dist = _ray_frames(xy)
             pair = pair_overlap_areas(xy, yaw, self.size2)
             iu, ju = np.nonzero(np.triu(pair > self.cfg.overlap_tol, k=1))
@@ -1454,6 +1450,25 @@ class _Problem:
                                     bbox_pano=o.bbox_pano))
         return Scene(floor=lam * self.floor, ceiling_z=lam * self.ceiling, camera_height=lam * self.h0,
                      objects=tuple(objs), scale=lam, timing={} if seconds is None else {"sampling": seconds})
+
+
+@functools.lru_cache(maxsize=1)
+def _repair_moves() -> tuple[tuple[FloatArray, FloatArray, FloatArray], ...]:
+    """Moves tried by the repair, least change first: (along the ray m, across m, turn rad) arrays.
+
+    First without a turn: along the viewing ray up to 3 m and across it up to 30 cm, in 1 cm steps; then with
+    turns up to 6 degrees. Cost (along / 0.1 m)^2 + (across / 0.03 m)^2 + (turn / 2 deg)^2."""
+    out = []
+    for turns in (np.zeros(1), np.radians(np.arange(-6, 7))):
+        da, dc, dy = np.meshgrid(np.arange(-300, 301) * 0.01, np.arange(-30, 31) * 0.01, turns, indexing="ij")
+        da, dc, dy = da.ravel(), dc.ravel(), dy.ravel()
+        if len(turns) > 1:
+            keep = dy != 0
+            da, dc, dy = da[keep], dc[keep], dy[keep]
+        cost = (da / 0.1) ** 2 + (dc / 0.03) ** 2 + (dy / np.radians(2.0)) ** 2
+        order = np.argsort(cost, kind="stable")
+        out.append((da[order], dc[order], dy[order]))
+    return tuple(out)
 
 
 def _ray_frames(xy: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:

@@ -175,6 +175,26 @@ def test_invalid_initial_state_is_repaired():
     check_valid(res.scene)
 
 
+def test_repair_steps_aside_rather_than_sliding_out_of_an_arm():
+    """A plant in a shallow arm of an L-shaped room reaches 6 cm through the arm's side wall, the one on the camera's
+    side. Sliding along its viewing ray, it fits only 0.8 m nearer, out of the arm (farther, the arm's end wall
+    stops it); 6.5 cm sideways it fits where it stands. The repair takes the least change: the step aside."""
+    _, labels, _, _, _ = synthetic(5)
+    floor = np.array([[-3.0, -2.0], [2.0, -2.0], [2.0, 1.7], [-0.34, 1.7], [-0.34, 2.5], [-2.6, 2.5], [-2.6, 1.7],
+                      [-3.0, 1.7]])
+    lik = surface_likelihood(observe_labels(labels, width=128), floor, 2.6, 1.6)
+    start = np.array([-0.78, 1.92])
+    box = world_box_to_pano(np.r_[start, 0.5], (1.0, 1.0, 1.0), 0.0, W, W // 2, camera_height=1.6).extent
+    plant = DetectedObject("plant", box, (1.0, 1.0, 1.0), 0.0, symmetric=True)
+    from layout.likelihood import orientation_likelihood
+
+    prob = _Problem(lik, [plant], orientation_likelihood(None, ["plant"]), SamplerConfig.improved(), W, W // 2)
+    assert not prob.object_ok(np.ones(1), start[None, None], np.zeros((1, 1)))[0, 0]
+    _, xy, _ = prob.repair(1.0, start[None].copy(), np.zeros(1), grow_scale=False)
+    assert prob.object_ok(np.ones(1), xy[None], np.zeros((1, 1)))[0, 0]
+    assert np.hypot(*(xy[0] - start)) < 0.1
+
+
 def test_impossible_scene_raises():
     pl, labels, dets, floor0, ceil0 = synthetic(6)
     lik = surface_likelihood(observe_labels(labels, width=128), floor0, ceil0, 1.6)
