@@ -102,10 +102,11 @@ inside the room, no two footprints overlapping by more than ``overlap_tol``,
 the camera at least ``camera_clearance`` from every footprint, every object
 below the ceiling (and, with ``keep_in_box``, on its box). An invalid
 initial state is first repaired (the scale grows when it was assumed, as in
-the paper scheme; objects slide along their rays, turn or step aside); the
-sampler then never prefers a sample that violates a constraint
-to one that does not (lexicographic order: violation, then energy). If no
-valid state was found, :class:`PosteriorError` is raised.
+the paper scheme; each object takes the least move along and across its
+viewing ray, or turns a little: :meth:`_Problem.repair`); the sampler then
+never prefers a sample that violates a constraint to one that does not
+(lexicographic order: violation, then energy). If no valid state was found,
+:class:`PosteriorError` is raised.
 
 Convention:
     World frame of shared/CONVENTIONS.md (metres, z up, camera at
