@@ -1391,7 +1391,7 @@ class _Problem:
            3 m) and across it (up to 30 cm), priced (along / 0.1 m)^2 +
            (across / 0.03 m)^2, so that a step of a few centimetres aside
            wins over a long slide out of an arm; if none fits, it also
-           turns (up to 6 degrees).
+           turns (up to 6 degrees) with smaller moves.
         4. Of two overlapping objects, the farther one slides away from the
            camera (or, if it cannot, the nearer one towards it) by the
            smallest step that separates them.
@@ -1414,12 +1414,17 @@ class _Problem:
                 lam = float(grid[int(np.argmax(fits))])  # the smallest scale at which the most objects fit
         along, _, dist = _ray_frames(xy)
         lam_a = np.array([lam])
+        stuck: set[int] = set()  # objects no move fits (object_ok tests each alone: that stays so)
         for _ in range(20):
             changed = False
             ok = self.object_ok(lam_a, xy[None], yaw[None])[0]
             for j in np.flatnonzero(~ok):
+                if j in stuck:
+                    continue
                 move = self._least_move(lam, xy[j], yaw[j], j)
-                if move is not None:
+                if move is None:
+                    stuck.add(int(j))
+                else:
                     xy[j], yaw[j] = move
                     changed = True
                     along, _, dist = _ray_frames(xy)
@@ -1457,15 +1462,16 @@ class _Problem:
 def _repair_moves() -> tuple[tuple[FloatArray, FloatArray, FloatArray], ...]:
     """Moves tried by the repair, least change first: (along the ray m, across m, turn rad) arrays.
 
-    First without a turn: along the viewing ray up to 3 m and across it up to 30 cm, in 1 cm steps; then with
-    turns up to 6 degrees. Cost (along / 0.1 m)^2 + (across / 0.03 m)^2 + (turn / 2 deg)^2."""
+    First without a turn: along the viewing ray up to 3 m and across it up to 30 cm, in 1 cm steps (36 661
+    moves). Then, for an object none of those fits, turns of 1-6 degrees either way with moves along the ray up
+    to 30 cm (2 cm steps) and across it up to 15 cm (3 cm steps), 4 092 moves: an object that fits nowhere costs
+    about 40 000 tests, not the 476 000 of the full grid with turns. Cost (along / 0.1 m)^2 + (across / 0.03 m)^2
+    + (turn / 2 deg)^2."""
+    grids = ((np.arange(-300, 301) * 0.01, np.arange(-30, 31) * 0.01, np.zeros(1)),
+             (np.arange(-15, 16) * 0.02, np.arange(-5, 6) * 0.03, np.radians(np.r_[np.arange(-6, 0), np.arange(1, 7)])))
     out = []
-    for turns in (np.zeros(1), np.radians(np.arange(-6, 7))):
-        da, dc, dy = np.meshgrid(np.arange(-300, 301) * 0.01, np.arange(-30, 31) * 0.01, turns, indexing="ij")
-        da, dc, dy = da.ravel(), dc.ravel(), dy.ravel()
-        if len(turns) > 1:
-            keep = dy != 0
-            da, dc, dy = da[keep], dc[keep], dy[keep]
+    for along, across, turns in grids:
+        da, dc, dy = (g.ravel() for g in np.meshgrid(along, across, turns, indexing="ij"))
         cost = (da / 0.1) ** 2 + (dc / 0.03) ** 2 + (dy / np.radians(2.0)) ** 2
         order = np.argsort(cost, kind="stable")
         out.append((da[order], dc[order], dy[order]))
