@@ -138,8 +138,9 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--crop", choices=["tile", "box"], default="tile",
                    help="the pose CRF's crop of a detection: the region its tile box bounds, or its whole panorama "
                         "box (looser where the tile is turned or pitched)")
-    p.add_argument("--orientation", choices=["net", "hog"], default="net",
+    p.add_argument("--orientation", choices=["net", "net-tile", "hog"], default="net",
                    help="orientation evidence: the HOG distance E_o plus the project's learned front/back prior, "
+                        "read on every tile that sees the object whole (net) or on the pose crop alone (net-tile), "
                         "or E_o alone (the paper)")
     p.add_argument("--box-edges", choices=["silhouette", "detector"], default="silhouette",
                    help="box edges the model choice and the sampler fit: the detector's, moved onto each object's "

@@ -65,8 +65,9 @@ DEFAULT_CAMERA_HEIGHT = 1.6
 CANDIDATE_SCORE = 0.05
 #: ``RunOptions.crop``: the region a tile box bounds, or the whole panorama box.
 CROP_MODES = ("tile", "box")
-#: ``RunOptions.orientation``: E_o plus the learned front/back prior (:mod:`posecrf.orientnet`), or E_o alone.
-ORIENTATION_MODES = ("net", "hog")
+#: ``RunOptions.orientation``: E_o plus the learned front/back prior (:mod:`posecrf.orientnet`) read on every tile
+#: that sees the object whole or on the pose crop alone, or E_o alone.
+ORIENTATION_MODES = ("net", "net-tile", "hog")
 #: ``RunOptions.box_edges``: where the box fits read a tile detection's edges.
 BOX_EDGE_MODES = ("silhouette", "detector")
 #: ``RunOptions.ceiling``: where the room step reads the ceiling-wall boundary.
@@ -81,7 +82,8 @@ OBJECT_MASK_MODES = ("tiles", "box")
 #: weights retrained in session 30, 0.1, 0.2, 0.3, 0.5 and 1.0 leave the same share of gt-box crops more than 45 deg
 #: off on both tuning sets, to within one object per class (``vs-hog``; docs/EVALUATION.md, "Session 30"). With those
 #: of session 31, 0.1 leaves 2 / 4 % of the chairs of seeds 7000 / 8000 that far off and 0.3 0 / 1 %, but 12 / 0 %
-#: of the sofas instead of 6 / 3 % (docs/EVALUATION.md, "Session 31"); 0.1 is kept.
+#: of the sofas instead of 6 / 3 % (docs/EVALUATION.md, "Session 31"); 0.1 is kept. Per view: since session 38 an
+#: object seen whole by several tiles pays 0.1 times each view's cost.
 ORIENTATION_WEIGHT = 0.1
 
 
@@ -114,8 +116,10 @@ class RunOptions:
         bounds where it has one, ``"box"`` its whole panorama box.
     orientation : str
         ``"net"`` (default): E_o of every pose plus ``ORIENTATION_WEIGHT`` times the cost of the project's
-        orientation network (:mod:`posecrf.orientnet`, a learned p(yaw | crop) that tells fronts from backs);
-        ``"hog"``: E_o alone (the paper).
+        orientation network (:mod:`posecrf.orientnet`, a learned p(yaw | crop) that tells fronts from backs),
+        read on the pose crop and (with ``crop="tile"``) on the crop of every other tile that sees the object
+        whole, their costs added on the world yaw; ``"net-tile"``: the network on the pose crop alone (sessions
+        10-37); ``"hog"``: E_o alone (the paper).
     box_edges : str
         ``"silhouette"`` (default): each box edge of a tile detection that its grab-cut silhouette confirms
         (within 3 degrees) moves onto the silhouette (:func:`detect.grabcut.silhouette_box`) before the
@@ -359,12 +363,38 @@ def object_crop(upright: np.ndarray, det, mode: str = "tile") -> tuple[np.ndarra
     return equirect_to_perspective(upright, view), view
 
 
-def _with_orientation_prior(est, probs: np.ndarray, weight: float):
-    """The pose estimate with ``weight * orientation_costs`` added to its E_o tables (every model, every pitch)."""
+def _with_orientation_prior(est, probs: np.ndarray, weight: float, shifts: np.ndarray | None = None):
+    """The pose estimate with ``weight * orientation_costs`` added to its E_o tables (every model, every pitch).
+
+    ``probs``: (n_bins,), or (V, n_bins) for V crops of the object, the first the estimate's own, with ``shifts``
+    (V,) radians, each crop's relative yaw minus the first's (:func:`posecrf.orientnet.orientation_costs`)."""
     from posecrf.orientnet import orientation_costs
 
-    c = weight * orientation_costs(probs, est.grid.yaws)
+    c = weight * orientation_costs(probs, est.grid.yaws, shifts=shifts)
     return replace(est, e_o=est.e_o + c[:, None], e_o_models=est.e_o_models + c[None, :, None])
+
+
+def other_tile_crops(upright: np.ndarray, det) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(crop, ray) of every tile that sees ``det`` whole other than its own (``Detection.views``), each cropped
+    as :func:`object_crop` crops the detection's own tile; tiles whose region has no perspective crop are left out."""
+    out = []
+    for tb in det.views:
+        if tb is det.tile:
+            continue
+        try:
+            crop, view = object_crop(upright, replace(det, tile=tb), "tile")
+        except ValueError:
+            continue
+        out.append((crop, view.direction))
+    return out
+
+
+def _view_shifts(rays: list) -> np.ndarray:
+    """Crop-relative yaw of each crop centred on ``rays`` minus the first's, for one world yaw: (V,) radians."""
+    from posecrf.crops import view_azimuth
+
+    az = view_azimuth(np.asarray(rays, dtype=np.float64))
+    return az - az[0]
 
 
 def _poses(upright: np.ndarray, dets: list, prog: Progress, crop_mode: str = "tile",
@@ -403,9 +433,18 @@ def _poses(upright: np.ndarray, dets: list, prog: Progress, crop_mode: str = "ti
             continue
         res = estimate_poses(renders, cls, crops)
         estimates = list(res.estimates)
-        if orientation == "net" and cls in ORIENT_CLASSES:
-            probs = load_orientation_net().probabilities(crops, [cls] * len(crops))
-            estimates = [_with_orientation_prior(e, p, ORIENTATION_WEIGHT) for e, p in zip(estimates, probs)]
+        if orientation in ("net", "net-tile") and cls in ORIENT_CLASSES:
+            # the network reads the pose crop and, with "net", the crop of every other tile that sees the object
+            # whole; the views' costs add (docs/EVALUATION.md, "Session 38")
+            more = orientation == "net" and crop_mode == "tile"
+            per_object = [[(crop, view.direction)] + (other_tile_crops(upright, dets[i]) if more else [])
+                          for crop, view, i in zip(crops, views, idx)]
+            flat = [c for obj in per_object for c, _ in obj]
+            probs = load_orientation_net().probabilities(flat, [cls] * len(flat))
+            ends = np.cumsum([len(obj) for obj in per_object])
+            estimates = [_with_orientation_prior(e, probs[end - len(obj):end], ORIENTATION_WEIGHT,
+                                                 _view_shifts([ray for _, ray in obj]))
+                         for e, obj, end in zip(estimates, per_object, ends)]
         for i, view, est in zip(idx, views, estimates):
             model = lib[est.model_id]
             ray = view.direction

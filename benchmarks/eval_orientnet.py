@@ -15,6 +15,15 @@ Run::
 the crops alone and averaged with their mirrors (:func:`posecrf.orientnet.mirror_average`, what the pipeline uses):
 the share whose most likely bin is within 45 deg of the truth (:func:`posecrf.train_orientation.score`).
 
+``views``: the builtin detector's detections of the classes with a head in every room of a synthetic set, each
+matched to the gt object of its class whose box it overlaps most (IoU >= 0.3): the network's most likely world yaw
+(on a 5-degree grid) from the pose crop alone (:func:`apps.pipeline.object_crop`) and from the crops of every tile
+that sees the object whole, their costs added on the world yaw (:func:`posecrf.orientnet.orientation_costs` with
+``shifts``; ``pano2cad run --orientation net`` against ``net-tile``): per class, the objects more than 45 deg off
+and the mean error. The network alone: the pipeline adds E_o, the model choice and the sampler.
+
+    .venv/bin/python benchmarks/eval_orientnet.py views out/tune7000
+
 ``vs-hog``: every object with at least 300 visible pixels of a class with a network head, cropped at its gt box
 (:func:`posecrf.crops.extract_crop`), through the pose CRF (:func:`posecrf.pose.estimate_poses`, per room and
 class as the pipeline does). For each weight ``w``, the yaw of least ``E_o + w * cost`` over the pose grid (E_o
@@ -111,6 +120,68 @@ def vs_hog(rooms_dir: str, weights_file: str, ws: list[float]) -> None:
         print(f"| {cls} | {len(r)} | {100 * crf:.0f} % | " + " | ".join(f"{100 * c:.0f} %" for c in cells) + " |")
 
 
+def views(rooms_dir: str) -> None:
+    from apps.pipeline import CANDIDATE_SCORE, object_crop, other_tile_crops
+    from detect.backends import get_detector
+    from detect.nms import pano_box_iou, suppress_across_classes
+    from detect.tiles import detect_panorama
+    from panogeom.rectify import estimate_rectification
+    from panogeom.vanishing import VanishingPointError
+    from posecrf.crops import relative_yaw, view_azimuth
+    from posecrf.orientnet import load_orientation_net, orientation_costs
+    from posecrf.train_orientation import read_rgb
+
+    net = load_orientation_net()
+    detector = get_detector("builtin")
+    threshold = float(detector.score_threshold)
+    detector.score_threshold = CANDIDATE_SCORE
+    world = np.radians(np.arange(72) * 5.0)
+    rows = []  # (class, error of the pose crop alone, error of all the views, number of views)
+    for room in sorted(Path(rooms_dir).glob("room-*")):
+        gt = json.loads((room / "gt.json").read_text())
+        heads = [o for o in gt["objects"] if o["class"] in net.classes and o.get("bbox_pano")
+                 and o.get("symmetry", "none") == "none"]
+        if not heads:
+            continue
+        pano = read_rgb(room / "pano.png")
+        try:  # as the pipeline (the gt stays in its frame: the rotation of a synthetic room is a few hundredths)
+            upright = estimate_rectification(pano, mode="walls").apply(pano)
+        except VanishingPointError:
+            upright = pano
+        # as the pipeline (apps.pipeline._detect): candidates down to its CANDIDATE_SCORE merged across the tiles,
+        # those at the detector's threshold kept, one class per region
+        found = detect_panorama(upright, detector, views=detector.views(), score_threshold=CANDIDATE_SCORE)
+        for d in suppress_across_classes([d for d in found if d.score >= threshold]):
+            same = [o for o in heads if o["class"] == d.label]
+            if d.tile is None or not same:
+                continue
+            iou = pano_box_iou([d.box], [o["bbox_pano"] for o in same], *upright.shape[1::-1]).reshape(-1)
+            if iou.max() < 0.3:
+                continue
+            truth = same[int(np.argmax(iou))]
+            try:
+                crop, view = object_crop(upright, d, "tile")
+            except ValueError:
+                continue
+            crops, rays = map(list, zip(*([(crop, view.direction)] + other_tile_crops(upright, d))))
+            p = net.probabilities(crops, [d.label] * len(crops))
+            az = view_azimuth(np.array(rays))
+            rel0 = relative_yaw(world, rays[0])
+            one = world[np.argmin(orientation_costs(p[0], rel0))]
+            every = world[np.argmin(orientation_costs(p, rel0, shifts=az - az[0]))]
+            t = math.radians(truth["yaw_deg"])
+            rows.append((d.label, float(_err_deg(one, t)), float(_err_deg(every, t)), len(crops)))
+    print(f"{len(rows)} detections of {rooms_dir} (builtin detector), "
+          f"{np.mean([r[3] for r in rows]):.2f} views per object on average\n")
+    print("| class | objects | pose crop: > 45 deg off | mean error | all views: > 45 deg off | mean error |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for cls in net.classes:
+        r = np.array([x[1:3] for x in rows if x[0] == cls]).reshape(-1, 2)
+        if len(r):
+            print(f"| {cls} | {len(r)} | {int((r[:, 0] > 45).sum())} | {r[:, 0].mean():.1f} deg | "
+                  f"{int((r[:, 1] > 45).sum())} | {r[:, 1].mean():.1f} deg |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -123,9 +194,13 @@ def main() -> None:
     v.add_argument("rooms")
     v.add_argument("weights_file")
     v.add_argument("--weights", type=float, nargs="+", default=[0.0, 0.1])
+    w = sub.add_parser("views")
+    w.add_argument("rooms")
     a = ap.parse_args()
     if a.cmd == "held-out":
         held_out(a.rooms, a.first, a.last if a.last is not None else 10**9, a.weights)
+    elif a.cmd == "views":
+        views(a.rooms)
     else:
         vs_hog(a.rooms, a.weights_file, a.weights)
 

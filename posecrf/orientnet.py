@@ -11,7 +11,8 @@ crop-relative yaw, learned from the project's synthetic rooms
 
     E_o'(model, yaw_rel, pitch) = E_o(model, yaw_rel, pitch) - w * log(N_BINS * p(yaw_rel | crop))
 
-(:func:`orientation_costs`; the weight ``w`` is the caller's).
+(:func:`orientation_costs`; the weight ``w`` is the caller's). Several crops of one object (the pipeline: one per
+tile that sees it whole) add their costs, each read at its own relative yaw of the same world yaw.
 
 Network: five 3x3 conv blocks (stride 2 from the second on) on a 64 x 64
 RGB crop, global average pooling, one linear layer giving ``N_BINS`` logits
@@ -270,13 +271,20 @@ def save_weights(module: Any, classes: Sequence[str], path: str | Path) -> None:
 
 
 def orientation_costs(probs: ArrayLike, yaw_rel: ArrayLike, symmetry: str = "none",
-                      floor: float = 1e-3) -> NDArray[np.float64]:
+                      floor: float = 1e-3, shifts: ArrayLike | None = None) -> NDArray[np.float64]:
     """-log(n_bins p(yaw_rel | crop)) at crop-relative yaws, p interpolated between bin centres on the circle.
+
+    Several crops of one object (say, the tiles that each see it whole) are taken as independent evidence: their
+    costs add (the product of their densities), crop ``j``'s read at ``yaw_rel + shifts[j]``, its crop-relative
+    yaw of the same world yaw. Crops centred on rays of azimuths ``alpha_j`` (:func:`posecrf.crops.view_azimuth`)
+    have ``shifts[j] = alpha_j - alpha_0`` (:func:`posecrf.crops.relative_yaw`), and ``yaw_rel`` is then crop 0's.
+    (A mean of the densities, or of the costs, is less sure than the one crop wherever one view disagrees, and
+    lost on the tuning sets: docs/EVALUATION.md, "Session 38".)
 
     Parameters
     ----------
-    probs : (n_bins,) float
-        One crop's row of :meth:`OrientationNet.probabilities`.
+    probs : (n_bins,) or (V, n_bins) float
+        One crop's row of :meth:`OrientationNet.probabilities`, or the rows of V crops of one object.
     yaw_rel : (...) float
         Radians.
     symmetry : {"none", "two", "full"}
@@ -284,36 +292,51 @@ def orientation_costs(probs: ArrayLike, yaw_rel: ArrayLike, symmetry: str = "non
         symmetric one gets cost 0 everywhere.
     floor : float
         Smallest density counted, relative to a uniform one (the cost is capped at ``-log(floor)``).
+    shifts : (V,) float, optional
+        Radians, with a (V, n_bins) ``probs`` (default: zeros, crops of one view).
 
     Returns
     -------
     (...) float
         ``-log(n_bins * p)``: the density relative to a uniform one, so a uniform ``p`` costs 0 everywhere, a
-        likelier yaw less than 0 and an unlikely one up to ``-log(floor)``.
+        likelier yaw less than 0 and an unlikely one up to ``-log(floor)``; with V crops the sum of their costs.
 
     Examples
     --------
     >>> p = np.zeros(N_BINS); p[0] = 1.0
     >>> [round(float(c), 3) for c in orientation_costs(p, [0.0, math.pi])]
     [-3.178, 6.908]
+
+    Two crops that agree on the world yaw though their views differ by 90 degrees of azimuth: twice the evidence.
+
+    >>> q = np.zeros(N_BINS); q[N_BINS // 4] = 1.0
+    >>> [round(float(c), 3) for c in orientation_costs([p, q], [0.0, math.pi], shifts=[0.0, math.pi / 2])]
+    [-6.356, 13.816]
     """
-    p = np.asarray(probs, dtype=np.float64).reshape(-1)
-    n = p.size
-    if n < 2 or not np.all(np.isfinite(p)) or np.any(p < 0):
-        raise ValueError(f"probs: expected a finite non-negative (n_bins,) row, got shape {p.shape}")
+    p = np.asarray(probs, dtype=np.float64)
+    p = p.reshape(1, -1) if p.ndim == 1 else p
+    n = p.shape[-1] if p.ndim else 0
+    if p.ndim != 2 or len(p) == 0 or n < 2 or not np.all(np.isfinite(p)) or np.any(p < 0):
+        raise ValueError(f"probs: expected finite non-negative (n_bins,) or (V, n_bins) rows, got shape {p.shape}")
+    s = np.zeros(len(p)) if shifts is None else np.asarray(shifts, dtype=np.float64).reshape(-1)
+    if s.shape != (len(p),) or not np.all(np.isfinite(s)):
+        raise ValueError(f"shifts: expected {len(p)} finite radians (one per row of probs), got shape {s.shape}")
     y = np.asarray(yaw_rel, dtype=np.float64)
     if symmetry == "full":
         return np.zeros_like(y)
     if symmetry not in ("none", "two"):
         raise ValueError(f"symmetry: expected 'none', 'two' or 'full', got {symmetry!r}")
 
-    def dens(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    def dens(a: NDArray[np.float64], row: NDArray[np.float64]) -> NDArray[np.float64]:
         f = (a % (2.0 * math.pi)) / (2.0 * math.pi) * n
         k0 = np.floor(f).astype(np.int64) % n
         t = f - np.floor(f)
-        return n * ((1.0 - t) * p[k0] + t * p[(k0 + 1) % n])
+        return n * ((1.0 - t) * row[k0] + t * row[(k0 + 1) % n])
 
-    d = dens(y)
-    if symmetry == "two":
-        d = 0.5 * (d + dens(y + math.pi))
-    return -np.log(np.maximum(d, floor))
+    cost = np.zeros_like(y)
+    for row, shift in zip(p, s):
+        d = dens(y + shift, row)
+        if symmetry == "two":
+            d = 0.5 * (d + dens(y + math.pi + shift, row))
+        cost += -np.log(np.maximum(d, floor))
+    return cost

@@ -39,6 +39,22 @@ def test_the_tile_crop_holds_the_tile_box_and_is_tighter_than_the_panorama_box()
 
 
 
+def test_the_other_tiles_crops_are_those_of_the_detection_with_that_tile():
+    from apps.pipeline import other_tile_crops
+
+    pano = np.random.default_rng(1).integers(0, 255, (512, 1024, 3), dtype=np.uint8)
+    det = _detection()
+    other = TileBox(PinholeView(yaw=0.7, pitch=-0.5, roll=0.0, fov=math.radians(90.0), width=416, height=416),
+                    [160.0, 130.0, 330.0, 290.0])
+    assert other_tile_crops(pano, det) == []  # no other view
+    seen_twice = Detection("chair", 0.9, det.box, 1024, 512, tile=det.tile, views=(det.tile, other))
+    (crop, ray), = other_tile_crops(pano, seen_twice)
+    want, view = object_crop(pano, Detection("chair", 0.9, det.box, 1024, 512, tile=other), "tile")
+    np.testing.assert_array_equal(crop, want)
+    np.testing.assert_allclose(ray, view.direction)
+    assert np.degrees(np.arccos(np.clip(ray @ object_crop(pano, det, "tile")[1].direction, -1, 1))) > 5.0
+
+
 def test_run_options_refuse_an_unknown_crop_mode():
     assert RunOptions().crop == "tile" and RunOptions(crop="box").crop == "box"
     with pytest.raises(ValueError, match="crop"):

@@ -47,6 +47,38 @@ def test_costs_uniform_is_zero_and_peak_is_cheapest():
     assert np.allclose(orientation_costs(p, yaws), orientation_costs(p, yaws + 2 * math.pi))
 
 
+def test_costs_of_several_views_add_on_the_world_yaw():
+    rng = np.random.default_rng(1)
+    p, q = rng.random((2, N_BINS)) + 0.05
+    p, q = p / p.sum(), q / q.sum()
+    y = np.linspace(0, 2 * math.pi, 73)
+    # one row: the single crop's cost; the same row twice without shifts: twice it
+    assert np.allclose(orientation_costs([p], y), orientation_costs(p, y))
+    assert np.allclose(orientation_costs([p, p], y, shifts=[0.0, 0.0]), 2 * orientation_costs(p, y))
+    # the second crop read at yaw + shift, for each symmetry
+    for sym in ("none", "two"):
+        two = orientation_costs([p, q], y, sym, shifts=[0.0, 0.7])
+        assert np.allclose(two, orientation_costs(p, y, sym) + orientation_costs(q, y + 0.7, sym))
+    assert np.all(orientation_costs([p, q], y, "full", shifts=[0.0, 0.7]) == 0.0)
+    # the first view sees the object turned round; two less sure views that agree on the world yaw (yaw k in the
+    # first view's frame: bin k + s_j in view j's) outvote it
+    k = 3
+    peak = np.full((3, N_BINS), 0.3 / (N_BINS - 1))
+    peak[0] = 0.2 / (N_BINS - 1)
+    s = np.array([0, 5, 9])
+    for j, b in enumerate([k + N_BINS // 2, k + 5, k + 9]):
+        peak[j, b % N_BINS] = 0.8 if j == 0 else 0.7
+    c = orientation_costs(peak, y, shifts=2 * math.pi * s / N_BINS)
+    assert _ang(y[np.argmin(c)], 2 * math.pi * k / N_BINS) < 1e-9
+    # shifts the wrong way round would scatter the agreeing views: the first view's yaw wins
+    c = orientation_costs(peak, y, shifts=-2 * math.pi * s / N_BINS)
+    assert _ang(y[np.argmin(c)], 2 * math.pi * (k + N_BINS // 2) / N_BINS) < 1e-9
+    with pytest.raises(ValueError, match="shifts"):
+        orientation_costs([p, q], y, shifts=[0.0])
+    with pytest.raises(ValueError, match="probs"):
+        orientation_costs(np.zeros((0, N_BINS)), y)
+
+
 def test_costs_symmetry():
     p = np.random.default_rng(0).random(N_BINS)
     p /= p.sum()
