@@ -367,7 +367,8 @@ def _with_orientation_prior(est, probs: np.ndarray, weight: float, shifts: np.nd
     """The pose estimate with ``weight * orientation_costs`` added to its E_o tables (every model, every pitch).
 
     ``probs``: (n_bins,), or (V, n_bins) for V crops of the object, the first the estimate's own, with ``shifts``
-    (V,) radians, each crop's relative yaw minus the first's (:func:`posecrf.orientnet.orientation_costs`)."""
+    (V,) radians, each crop's relative yaw minus the first's (:func:`posecrf.crops.relative_yaw_shifts`,
+    :func:`posecrf.orientnet.orientation_costs`)."""
     from posecrf.orientnet import orientation_costs
 
     c = weight * orientation_costs(probs, est.grid.yaws, shifts=shifts)
@@ -389,19 +390,12 @@ def other_tile_crops(upright: np.ndarray, det) -> list[tuple[np.ndarray, np.ndar
     return out
 
 
-def _view_shifts(rays: list) -> np.ndarray:
-    """Crop-relative yaw of each crop centred on ``rays`` minus the first's, for one world yaw: (V,) radians."""
-    from posecrf.crops import view_azimuth
-
-    az = view_azimuth(np.asarray(rays, dtype=np.float64))
-    return az - az[0]
-
-
 def _poses(upright: np.ndarray, dets: list, prog: Progress, crop_mode: str = "tile",
            orientation: str = "net") -> list:
     """Per detection: (model, yaw in the upright frame or None, E_o table over 72 world-yaw bins or None,
     the pose estimate, the crop's ray), or None without a pose."""
     from posecrf.library import builtin_library
+    from posecrf.crops import relative_yaw_shifts
     from posecrf.orientnet import ORIENT_CLASSES, load_orientation_net
     from posecrf.pose import estimate_poses
     from posecrf.render import PoseGrid, RenderSettings
@@ -443,7 +437,7 @@ def _poses(upright: np.ndarray, dets: list, prog: Progress, crop_mode: str = "ti
             probs = load_orientation_net().probabilities(flat, [cls] * len(flat))
             ends = np.cumsum([len(obj) for obj in per_object])
             estimates = [_with_orientation_prior(e, probs[end - len(obj):end], ORIENTATION_WEIGHT,
-                                                 _view_shifts([ray for _, ray in obj]))
+                                                 relative_yaw_shifts([ray for _, ray in obj]))
                          for e, obj, end in zip(estimates, per_object, ends)]
         for i, view, est in zip(idx, views, estimates):
             model = lib[est.model_id]

@@ -127,7 +127,7 @@ def views(rooms_dir: str) -> None:
     from detect.tiles import detect_panorama
     from panogeom.rectify import estimate_rectification
     from panogeom.vanishing import VanishingPointError
-    from posecrf.crops import relative_yaw, view_azimuth
+    from posecrf.crops import relative_yaw, relative_yaw_shifts
     from posecrf.orientnet import load_orientation_net, orientation_costs
     from posecrf.train_orientation import read_rgb
 
@@ -165,10 +165,9 @@ def views(rooms_dir: str) -> None:
                 continue
             crops, rays = map(list, zip(*([(crop, view.direction)] + other_tile_crops(upright, d))))
             p = net.probabilities(crops, [d.label] * len(crops))
-            az = view_azimuth(np.array(rays))
             rel0 = relative_yaw(world, rays[0])
             one = world[np.argmin(orientation_costs(p[0], rel0))]
-            every = world[np.argmin(orientation_costs(p, rel0, shifts=az - az[0]))]
+            every = world[np.argmin(orientation_costs(p, rel0, shifts=relative_yaw_shifts(rays)))]
             t = math.radians(truth["yaw_deg"])
             rows.append((d.label, float(_err_deg(one, t)), float(_err_deg(every, t)), len(crops)))
     print(f"{len(rows)} detections of {rooms_dir} (builtin detector), "

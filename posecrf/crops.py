@@ -52,6 +52,7 @@ __all__ = [
     "object_pitch",
     "world_yaw",
     "relative_yaw",
+    "relative_yaw_shifts",
     "fold_yaw",
     "pano_box_ray",
     "crop_view",
@@ -162,6 +163,30 @@ def relative_yaw(yaw: ArrayLike, ray: ArrayLike, symmetry: str = "none") -> NDAr
     1.2
     """
     return fold_yaw(view_azimuth(ray) + math.pi - _angles(yaw, "yaw"), symmetry)
+
+
+def relative_yaw_shifts(rays: ArrayLike) -> NDArray[np.float64]:
+    """How the crop-relative yaw of one object changes from view to view: ``relative_yaw(yaw, rays[j]) -
+    relative_yaw(yaw, rays[0])`` for every world yaw, i.e. ``alpha_j - alpha_0`` (:func:`view_azimuth`).
+
+    Parameters
+    ----------
+    rays : (V, 3) float
+        Directions camera -> object centre of V crops of the same object (their views' centre rays).
+
+    Returns
+    -------
+    (V,) float
+        Radians, not wrapped; 0 for the first view.
+
+    Examples
+    --------
+    >>> rays = [[1.0, 0.0, -0.2], [0.0, 1.0, -0.3]]
+    >>> [round(float(np.degrees(s)), 6) for s in relative_yaw_shifts(rays)]
+    [0.0, 90.0]
+    """
+    az = view_azimuth(np.asarray(rays, dtype=np.float64).reshape(-1, 3))
+    return az - az[0]
 
 
 def _pano_box(box: ArrayLike, width: int, height: int) -> tuple[NDArray[np.float64], float, float]:

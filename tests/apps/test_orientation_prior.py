@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from apps.pipeline import RunOptions, _view_shifts, _with_orientation_prior
-from posecrf.crops import relative_yaw
+from apps.pipeline import RunOptions, _with_orientation_prior
+from posecrf.crops import relative_yaw_shifts
 from posecrf.orientnet import N_BINS
 from posecrf.pose import PoseEstimate
 from posecrf.render import PoseGrid
@@ -42,20 +42,11 @@ def test_the_prior_breaks_a_front_back_tie():
     assert np.allclose(flat.e_o, est.e_o)
 
 
-def test_view_shifts_map_each_crops_relative_yaw_onto_the_first_ones():
-    rays = np.array([[1.0, 0.2, -0.3], [0.6, 0.8, -0.1], [-0.5, 0.1, -0.6]])
-    shifts = _view_shifts(list(rays))
-    assert shifts[0] == 0.0
-    for world in (0.0, 1.3, 4.0):
-        rel = relative_yaw(world, rays)
-        assert np.allclose(np.cos(rel - rel[0] - shifts), 1.0)
-
-
 def test_the_prior_of_two_views_that_agree_breaks_the_tie():
     grid = PoseGrid()
     est = _estimate(grid)
     rays = [np.array([1.0, 0.0, -0.2]), np.array([0.0, 1.0, -0.2])]  # 90 degrees of azimuth apart
-    shifts = _view_shifts(rays)
+    shifts = relative_yaw_shifts(rays)
     # the first view cannot tell front (relative 0 deg) from back (180 deg) either; the second sees the back:
     # relative 270 deg in its own frame is 180 deg in the first one's
     p = np.full((2, N_BINS), 0.1 / (N_BINS - 2))

@@ -23,6 +23,7 @@ from posecrf.crops import (  # noqa: E402
     object_pitch,
     pano_box_ray,
     relative_yaw,
+    relative_yaw_shifts,
     view_azimuth,
     world_yaw,
 )
@@ -90,6 +91,17 @@ def test_world_yaw_cases_by_hand():
         fold_yaw(0.3, "full")
     with pytest.raises(ValueError, match="horizontal component"):
         world_yaw(0.0, [0.0, 0.0, -1.0])
+
+
+def test_relative_yaw_shifts_map_each_crops_relative_yaw_onto_the_first_ones():
+    rays = np.array([[1.0, 0.2, -0.3], [0.6, 0.8, -0.1], [-0.5, 0.1, -0.6]])
+    shifts = relative_yaw_shifts(rays)
+    assert shifts.shape == (3,) and shifts[0] == 0.0
+    for world in (0.0, 1.3, 4.0):
+        rel = relative_yaw(world, rays)
+        assert np.allclose(np.cos(rel - rel[0] - shifts), 1.0)
+    with pytest.raises(ValueError, match="horizontal component"):
+        relative_yaw_shifts([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 
 
 def _world_render(model, yaw_world: float, azimuth: float, pitch: float, s: RenderSettings):
