@@ -121,20 +121,16 @@ def vs_hog(rooms_dir: str, weights_file: str, ws: list[float]) -> None:
 
 
 def views(rooms_dir: str) -> None:
-    from apps.pipeline import CANDIDATE_SCORE, object_crop, other_tile_crops
-    from detect.backends import get_detector
-    from detect.nms import pano_box_iou, suppress_across_classes
-    from detect.tiles import detect_panorama
-    from panogeom.rectify import estimate_rectification
-    from panogeom.vanishing import VanishingPointError
+    # the pipeline's own rectification and detection (apps.pipeline: the same code path as pano2cad run)
+    from apps.pipeline import _detect, _rectify, object_crop, other_tile_crops
+    from apps.progress import Progress
+    from detect.nms import pano_box_iou
     from posecrf.crops import relative_yaw, relative_yaw_shifts
     from posecrf.orientnet import load_orientation_net, orientation_costs
     from posecrf.train_orientation import read_rgb
 
     net = load_orientation_net()
-    detector = get_detector("builtin")
-    threshold = float(detector.score_threshold)
-    detector.score_threshold = CANDIDATE_SCORE
+    quiet = Progress(quiet=True)
     world = np.radians(np.arange(72) * 5.0)
     rows = []  # (class, error of the pose crop alone, error of all the views, number of views)
     for room in sorted(Path(rooms_dir).glob("room-*")):
@@ -144,14 +140,9 @@ def views(rooms_dir: str) -> None:
         if not heads:
             continue
         pano = read_rgb(room / "pano.png")
-        try:  # as the pipeline (the gt stays in its frame: the rotation of a synthetic room is a few hundredths)
-            upright = estimate_rectification(pano, mode="walls").apply(pano)
-        except VanishingPointError:
-            upright = pano
-        # as the pipeline (apps.pipeline._detect): candidates down to its CANDIDATE_SCORE merged across the tiles,
-        # those at the detector's threshold kept, one class per region
-        found = detect_panorama(upright, detector, views=detector.views(), score_threshold=CANDIDATE_SCORE)
-        for d in suppress_across_classes([d for d in found if d.score >= threshold]):
+        # the gt stays in its frame: the rectification of a synthetic room turns it by a few hundredths of a degree
+        rect, upright = _rectify(pano, quiet, [])
+        for d in _detect(pano, upright, rect, "builtin", quiet)[0]:
             same = [o for o in heads if o["class"] == d.label]
             if d.tile is None or not same:
                 continue
