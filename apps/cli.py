@@ -142,9 +142,10 @@ def add_run_options(p: argparse.ArgumentParser) -> None:
                    help="orientation evidence: the HOG distance E_o plus the project's learned front/back prior, "
                         "read on every tile that sees the object whole (net) or on the pose crop alone (net-tile), "
                         "or E_o alone (the paper)")
-    p.add_argument("--box-edges", choices=["silhouette", "detector"], default="silhouette",
-                   help="box edges the model choice and the sampler fit: the detector's, moved onto each object's "
-                        "grab-cut silhouette where it confirms them, or the detector's alone")
+    p.add_argument("--box-edges", choices=["net", "silhouette", "net+silhouette", "detector"], default="net",
+                   help="box edges the model choice and the sampler fit: the detector's refined by the project's "
+                        "edge network (net), moved onto each object's grab-cut silhouette where it confirms them "
+                        "(silhouette), both in that order (net+silhouette), or the detector's alone")
     p.add_argument("--ceiling", choices=["network", "labels"], default="network",
                    help="ceiling-wall boundary the room step reads: the boundary network's (unless it is far from "
                         "the labels' in most columns), or the surface labels'")

@@ -26,9 +26,11 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
    -> yaw and model per object (:mod:`posecrf`); not in the paper, the E_o tables
    also pay the project's learned front/back prior on the crop-relative yaw
    (:mod:`posecrf.orientnet`, ``RunOptions.orientation``)
-   Not in the paper, after the poses (stage ``edges``, ``RunOptions.box_edges``):
-   each tile box edge that the object's grab-cut silhouette confirms moves
-   onto it (:func:`detect.grabcut.silhouette_box`), for the box fits below
+   Not in the paper, after the poses (stage ``refine``, ``RunOptions.box_edges``):
+   every tile box of a detection refined by the project's box-edge network
+   (:class:`detect.builtin.refine.BoxRefiner`), for the box fits below; or
+   (stage ``edges``) each tile box edge that the object's grab-cut silhouette
+   confirms moved onto it (:func:`detect.grabcut.silhouette_box`)
 7. model choice by box fit (not in the paper, ``RunOptions.model_choice``):
    each object's model among its class's and its wall-aligned yaw, with the
    camera height they share, from how well they fit the detection boxes
@@ -69,7 +71,7 @@ CROP_MODES = ("tile", "box")
 #: that sees the object whole or on the pose crop alone, or E_o alone.
 ORIENTATION_MODES = ("net", "net-tile", "hog")
 #: ``RunOptions.box_edges``: where the box fits read a tile detection's edges.
-BOX_EDGE_MODES = ("silhouette", "detector")
+BOX_EDGE_MODES = ("silhouette", "detector", "net", "net+silhouette")
 #: ``RunOptions.ceiling``: where the room step reads the ceiling-wall boundary.
 CEILING_MODES = ("labels", "network")
 #: ``RunOptions.walls``: walls where the labels put them, or moved onto the image's ceiling-wall edges.
@@ -121,9 +123,12 @@ class RunOptions:
         whole, their costs added on the world yaw; ``"net-tile"``: the network on the pose crop alone (sessions
         10-37); ``"hog"``: E_o alone (the paper).
     box_edges : str
-        ``"silhouette"`` (default): each box edge of a tile detection that its grab-cut silhouette confirms
-        (within 3 degrees) moves onto the silhouette (:func:`detect.grabcut.silhouette_box`) before the
-        model choice and the sampler fit the boxes; ``"detector"``: the detector's edges alone.
+        ``"net"`` (default): every tile box of a detection refined by the project's box-edge network
+        (:class:`detect.builtin.refine.BoxRefiner`) before the model choice and the sampler fit the boxes
+        (session 39; docs/EVALUATION.md); ``"silhouette"`` (sessions 18-38): each box edge that the
+        object's grab-cut silhouette confirms (within 3 degrees) moves onto the silhouette
+        (:func:`detect.grabcut.silhouette_box`); ``"net+silhouette"``: refined, then onto the silhouette;
+        ``"detector"``: the detector's edges alone.
     ceiling : str
         ``"network"`` (default): the labels' ceiling-wall boundary moved onto the boundary network's
         (:mod:`layout.surfaces.boundary_net`, ``estimate_surfaces(ceiling_net=True)``), unless the two are
@@ -151,7 +156,7 @@ class RunOptions:
     model_choice: str = "box"
     crop: str = "tile"
     orientation: str = "net"
-    box_edges: str = "silhouette"
+    box_edges: str = "net"
     ceiling: str = "network"
     walls: str = "edges"
     object_mask: str = "tiles"
@@ -596,11 +601,17 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
 
     silhouettes: list = [None] * len(dets)
     refine = [d.tile is not None and p is not None for d, p in zip(dets, poses)]
-    if options.box_edges == "silhouette" and any(refine):
+    if options.box_edges.startswith("net") and any(refine):
+        from detect.builtin.refine import BoxRefiner
+
+        with prog.stage("refine", "box edges refined by the edge network"):
+            refiner = BoxRefiner()
+            # only the objects the box fits will see (those with a pose)
+            dets = [refiner.refine(upright, d) if r else d for d, r in zip(dets, refine)]
+    if options.box_edges.endswith("silhouette") and any(refine):
         from detect.grabcut import silhouette_box
 
         with prog.stage("edges", "box edges onto the grab-cut silhouettes"):
-            # only the objects the box fits will see (those with a pose)
             silhouettes = [silhouette_box(upright, d) if r else None for d, r in zip(dets, refine)]
             moved = sum(int(s.snapped.any(axis=0).sum()) for s in silhouettes if s is not None)
             prog.say(f"  {moved} of {4 * len(dets)} box edges moved onto a silhouette")

@@ -18,9 +18,13 @@ position, yaw and camera height, two ways:
 * each edge moved onto the object's grab-cut silhouette where it confirms the detector's edge within 3 degrees
   (:func:`detect.grabcut.silhouette_box`, what the pipeline's box fits use by default since session 18), the
   median over the views as above;
+* with ``--refine``: every tile box refined by the box-edge network (:class:`detect.builtin.refine.BoxRefiner`,
+  what the pipeline's box fits use by default since session 39), the median over the views as above; and the
+  same, then moved onto the grab-cut silhouette;
 * as the panorama box (lon/lat extent, ``Detection.box``): predicted minus detected edge angle.
 
-Also printed per mode: the share of edges within 0.5 degree of the outline and the share more than 2 degrees off.
+Also printed per mode: the mean absolute residual, the share of edges within 0.5 degree of the outline and the
+share more than 2 degrees off.
 
 Printed per class and overall: median and median absolute deviation (MAD) per edge (left, top, right, bottom),
 degrees. This is where the edge scale of :mod:`layout.modelfit` and the choice of great-circle edges come from.
@@ -43,8 +47,9 @@ from PIL import Image
 SECTION = "## Detector box edges against the true outlines (model choice input)"
 
 
-def measure(data: Path, rooms: int, min_visible: int = 2000) -> dict[str, dict[str, list]]:
-    """Per mode ('planes', 'pano box') and class: list of (4,) residuals in degrees (NaN: edge left out)."""
+def measure(data: Path, rooms: int, min_visible: int = 2000, refine: Path | None = None) -> dict[str, dict[str, list]]:
+    """Per mode ('planes', 'pano box', ...) and class: list of (4,) residuals in degrees (NaN: edge left out).
+    With ``refine`` (weights of :class:`detect.builtin.refine.BoxRefiner`), also the refined edges."""
     from detect.backends import get_detector
     from detect.nms import pano_box_iou
     from detect.grabcut import silhouette_box
@@ -56,8 +61,14 @@ def measure(data: Path, rooms: int, min_visible: int = 2000) -> dict[str, dict[s
     outlines: dict[str, np.ndarray] = {}
     det = get_detector("builtin")
     views = det.views()
-    out: dict[str, dict[str, list]] = {m: defaultdict(list) for m in ("planes", "planes, median of views",
-                                                                         "silhouette, median of views", "pano box")}
+    modes = ["planes", "planes, median of views", "silhouette, median of views", "pano box"]
+    refiner = None
+    if refine is not None:
+        from detect.builtin.refine import BoxRefiner
+
+        refiner = BoxRefiner(refine)
+        modes[3:3] = ["network, median of views", "network + silhouette, median of views"]
+    out: dict[str, dict[str, list]] = {m: defaultdict(list) for m in modes}
     for room in sorted(p for p in data.iterdir() if (p / "gt.json").is_file())[:rooms]:
         gt = json.loads((room / "gt.json").read_text())
         img = np.array(Image.open(room / gt["image"].get("file", "pano.png")).convert("RGB"))
@@ -80,9 +91,15 @@ def measure(data: Path, rooms: int, min_visible: int = 2000) -> dict[str, dict[s
             xy = np.array(o["center"], float)[None, None, :2]
             sets = d.edge_planes()
             sil = silhouette_box(img, d)
-            for mode, planes in (("planes", d.tile.edge_planes()), ("planes, median of views", sets),
-                                 ("silhouette, median of views", sets if sil is None else sil.edge_planes()),
-                                 ("pano box", None)):
+            modes = [("planes", d.tile.edge_planes()), ("planes, median of views", sets),
+                     ("silhouette, median of views", sets if sil is None else sil.edge_planes()), ("pano box", None)]
+            if refiner is not None:
+                rd = refiner.refine(img, d)
+                rsil = silhouette_box(img, rd)
+                modes[3:3] = [("network, median of views", rd.edge_planes()),
+                              ("network + silhouette, median of views",
+                               rd.edge_planes() if rsil is None else rsil.edge_planes())]
+            for mode, planes in modes:
                 obj = DetectedObject(o["class"], d.box, o["size"], yaw, outline=outlines[o["model"]],
                                      edge_planes=planes)
                 r = np.degrees(_BoxEdges([obj], W, H).residual(xy, np.array([[yaw]]), np.array([[cam]]))[0, 0])
@@ -97,16 +114,20 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("data", type=Path, help="a synthetic set (pano2cad synth output), not the evaluation set")
     ap.add_argument("--rooms", type=int, default=30)
+    ap.add_argument("--refine", type=Path, nargs="?", const=Path("detect/builtin/weights/refine.pt"),
+                    help="also the edges of the box-edge network (detect.builtin.refine; default: its committed "
+                         "weights)")
     ap.add_argument("--update-docs", action="store_true", help="write the section into docs/EVALUATION.md")
     args = ap.parse_args(argv)
-    res = measure(args.data, args.rooms)
+    res = measure(args.data, args.rooms, refine=args.refine)
     lines = [SECTION, "",
-             f"`.venv/bin/python benchmarks/eval_box_edges.py {args.data} --rooms {args.rooms} --update-docs` (this "
+             f"`.venv/bin/python benchmarks/eval_box_edges.py {args.data} --rooms {args.rooms}"
+             f"{' --refine' if args.refine else ''} --update-docs` (this "
              "section is written by the script; see its docstring). Builtin detector, objects with at least 2000 "
              "visible pixels found by it; residuals at the true model, pose and camera height, degrees (left, top, "
              "right, bottom).", "",
-             "| edges as | class | objects | median | MAD | within 0.5 deg | over 2 deg |",
-             "|---|---|---:|---|---|---|---|"]
+             "| edges as | class | objects | median | MAD | mean absolute | within 0.5 deg | over 2 deg |",
+             "|---|---|---:|---|---|---|---|---|"]
     for mode, per in res.items():
         for cls in ["all"] + sorted(c for c in per if c != "all"):
             v = np.array(per[cls], float)
@@ -115,8 +136,10 @@ def main(argv: list[str] | None = None) -> int:
             a, known = np.abs(v), np.isfinite(v)
             near = np.sum((a < 0.5) & known, axis=0) / np.maximum(known.sum(axis=0), 1)
             far = np.sum((a > 2.0) & known, axis=0) / np.maximum(known.sum(axis=0), 1)
+            mean = np.nanmean(a, axis=0)
             lines.append(f"| {mode} | {cls} | {len(v)} | {' / '.join(f'{x:+.2f}' for x in med)} | "
-                         f"{' / '.join(f'{x:.2f}' for x in mad)} | {' / '.join(f'{x:.2f}' for x in near)} | "
+                         f"{' / '.join(f'{x:.2f}' for x in mad)} | {' / '.join(f'{x:.2f}' for x in mean)} | "
+                         f"{' / '.join(f'{x:.2f}' for x in near)} | "
                          f"{' / '.join(f'{x:.2f}' for x in far)} |")
     publish(lines, args.update_docs, EVALUATION_MD, SECTION)
     return 0

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import json
 import pickle
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -98,17 +98,40 @@ def load_record(weights: str | Path = DEFAULT_WEIGHTS) -> dict[str, Any]:
         raise ModelFileError(p, f"cannot read the weights record ({exc})") from None
 
 
-def save_weights(net: Any, config: NetConfig, path: str | Path) -> Path:
-    """Write a network's weights (float32 state dict) and config to ``path`` (a ``.pt`` file), atomically."""
+def save_network(net: Any, fmt: str, config: dict[str, Any], path: str | Path) -> Path:
+    """Write a network's weights (float32 state dict), its ``config`` and format tag ``fmt`` to ``path`` (a ``.pt``
+    file), atomically: the builtin detector's and the box refiner's weights files."""
     torch = torch_module()
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     tmp = p.with_suffix(".pt.tmp")
     state = {k: v.detach().cpu().float() if v.is_floating_point() else v.detach().cpu()
              for k, v in net.state_dict().items()}
-    torch.save({"format": "pano2cad/builtin-detector@1", "config": config.to_json(), "state_dict": state}, tmp)
+    torch.save({"format": fmt, "config": config, "state_dict": state}, tmp)
     tmp.replace(p)
     return p
+
+
+def load_network(path: Path, what: str, from_json: Callable[[dict[str, Any]], Any],
+                 build: Callable[[Any], Any]) -> tuple[Any, Any]:
+    """Read a weights file of :func:`save_network`: ``(config, network)``, the config parsed by ``from_json`` and
+    the network made by ``build(config)``. A missing or foreign file raises ModelFileError naming ``what``."""
+    torch = torch_module()
+    if not path.is_file():
+        raise ModelFileError(path, f"{what} weights not found")
+    try:
+        blob = torch.load(path, map_location="cpu", weights_only=True)
+        config = from_json(blob["config"])
+        net = build(config)
+        net.load_state_dict(blob["state_dict"])
+    except (OSError, RuntimeError, KeyError, TypeError, ValueError, pickle.UnpicklingError) as exc:
+        raise ModelFileError(path, f"not {what} weights ({type(exc).__name__}: {exc})") from None
+    return config, net
+
+
+def save_weights(net: Any, config: NetConfig, path: str | Path) -> Path:
+    """Write the detector network's weights and config to ``path`` (a ``.pt`` file), atomically."""
+    return save_network(net, "pano2cad/builtin-detector@1", config.to_json(), path)
 
 
 class BuiltinDetector:
@@ -165,15 +188,7 @@ class BuiltinDetector:
                  input_size: int | None = None, border_snap: float = 0.03, flip: bool | None = None) -> None:
         torch = torch_module()
         self.weights = Path(weights) if weights is not None else DEFAULT_WEIGHTS
-        if not self.weights.is_file():
-            raise ModelFileError(self.weights, "builtin detector weights not found")
-        try:
-            blob = torch.load(self.weights, map_location="cpu", weights_only=True)
-            config = NetConfig.from_json(blob["config"])
-            net = build_network(config)
-            net.load_state_dict(blob["state_dict"])
-        except (OSError, RuntimeError, KeyError, TypeError, ValueError, pickle.UnpicklingError) as exc:
-            raise ModelFileError(self.weights, f"not builtin detector weights ({type(exc).__name__}: {exc})") from None
+        config, net = load_network(self.weights, "builtin detector", NetConfig.from_json, build_network)
         self.record = load_record(self.weights)
         if score_threshold is None:
             score_threshold = float(self.record.get("score_threshold", 0.3))

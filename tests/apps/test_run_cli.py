@@ -152,32 +152,44 @@ def test_detection_keeps_the_ranked_candidates_for_average_precision(room_png):
     assert [d for d in cands if d.score >= thr] == used
 
 
-def test_box_edges_move_onto_the_silhouettes_unless_told_not_to(tmp_path, room_png, monkeypatch):
-    """`--box-edges silhouette` (default) refines the tile detections' edges by grab-cut before the box fits (its
-    own stage); `--box-edges detector` fits the detector's edges as they are; a bad mode is refused."""
+def test_box_edges_refined_by_the_network_or_the_silhouettes_unless_told_not_to(tmp_path, room_png, monkeypatch):
+    """`--box-edges net` (default) refines the tile detections' edges by the edge network before the box fits (stage
+    ``refine``); `silhouette` moves them onto grab-cut silhouettes (stage ``edges``); `detector` fits the detector's
+    edges as they are; a bad mode is refused."""
     pytest.importorskip("torch")
     import detect.grabcut
     from apps.pipeline import RunOptions
+    from detect.builtin.refine import BoxRefiner
 
-    calls = []
-    real = detect.grabcut.silhouette_box
+    assert RunOptions().box_edges == "net"
+    calls, refined = [], []
+    real, real_refine = detect.grabcut.silhouette_box, BoxRefiner.refine
 
     def spy(*args, **kwargs):
         calls.append(real(*args, **kwargs))
         return calls[-1]
 
+    def spy_refine(self, pano, det):
+        refined.append((det, real_refine(self, pano, det)))
+        return refined[-1][1]
+
     monkeypatch.setattr(detect.grabcut, "silhouette_box", spy)
-    timings = {}
-    for mode in ("silhouette", "detector"):
-        out = tmp_path / mode
+    monkeypatch.setattr(BoxRefiner, "refine", spy_refine)
+    timings, counts = {}, {}
+    for mode in ("net", "silhouette", "detector"):
+        out = tmp_path / mode.replace("+", "_")
         assert main(["run", str(room_png / "pano.png"), "--out", str(out), "--size", "512", "--samples", "20",
                      "--quiet", "--box-edges", mode]) == 0
         timings[mode] = json.loads((out / "scene.json").read_text())["timing_s"]
-        if mode == "silhouette":
-            assert calls and any(c is not None and c.snapped.any() for c in calls)
-            n = len(calls)
-    assert "edges" in timings["silhouette"] and "edges" not in timings["detector"]
-    assert len(calls) == n  # the detector mode made no grab-cut call
+        counts[mode] = (len(calls), len(refined))
+    assert counts["net"][0] == 0 and counts["net"][1] > 0
+    assert any(not np.array_equal(a.tile.box, b.tile.box) for a, b in refined)
+    assert counts["silhouette"][1] == counts["net"][1] and counts["silhouette"][0] > 0
+    assert any(c is not None and c.snapped.any() for c in calls)
+    assert counts["detector"] == counts["silhouette"]  # the detector mode made no call of either
+    assert "refine" in timings["net"] and "edges" not in timings["net"]
+    assert "edges" in timings["silhouette"] and "refine" not in timings["silhouette"]
+    assert "edges" not in timings["detector"] and "refine" not in timings["detector"]
     with pytest.raises(ValueError, match="box_edges: expected one of"):
         RunOptions(box_edges="grabcut")
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import warnings
 from pathlib import Path
 
@@ -119,10 +120,40 @@ def find_real_data() -> Path | None:
     return None
 
 
+def fake_rooms(root: Path, seed: int, n: int = 1) -> Path:
+    """Room folders with painted objects, as `pano2cad synth` writes them (a tv and a bed)."""
+    import cv2
+
+    from panogeom.boxes import mask_to_pano_box
+    from panogeom.coords import pixel_grid, pixel_to_lonlat
+
+    root.mkdir(parents=True)
+    W, H = 256, 128
+    ll = np.rad2deg(pixel_to_lonlat(pixel_grid(W, H), W, H))
+    for i in range(n):
+        d = root / f"room-{i:04d}"
+        d.mkdir()
+        rgb = np.full((H, W, 3), 120, np.uint8)
+        inst = np.zeros((H, W), np.uint16)
+        objs = []
+        for k, (label, lon, lat, colour) in enumerate((("tv", 30 + 50 * i, 0, (20, 20, 20)),
+                                                        ("bed", -90, -30, (200, 40, 40)))):
+            m = (np.abs(ll[..., 0] - lon) < 15) & (np.abs(ll[..., 1] - lat) < 10)
+            rgb[m] = colour
+            inst[m] = k + 1
+            objs.append({"class": label, "bbox_pano": mask_to_pano_box(m).tolist(), "visible_px": int(m.sum())})
+        cv2.imwrite(str(d / "pano.png"), rgb[..., ::-1])
+        cv2.imwrite(str(d / "instances.png"), inst)
+        (d / "gt.json").write_text(json.dumps({"image": {"width": W, "height": H}, "objects": objs}))
+    (root / "index.json").write_text(json.dumps({"seed": seed}))
+    return root
+
+
 @pytest.fixture(scope="session")
 def synth():
     """Helpers for synthetic scenes (fixtures, as conftest modules are not importable under importlib mode)."""
     from types import SimpleNamespace
 
     return SimpleNamespace(grey_pano=grey_pano, paint_lonlat=paint_lonlat, COLOURS=COLOURS, NAMES=NAMES,
+                           fake_rooms=fake_rooms,
                            real_data=find_real_data())

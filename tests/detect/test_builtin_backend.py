@@ -145,40 +145,11 @@ def test_stored_room_is_found(det):
     assert len(found) >= 0.5 * sum(1 for r in res.classes.values() if r.n_gt), res
 
 
-def _fake_rooms(root: Path, seed: int, n: int = 1) -> Path:
-    """Room folders with painted objects, as `pano2cad synth` writes them (a tv and a bed)."""
-    import cv2
-
-    from panogeom.boxes import mask_to_pano_box
-    from panogeom.coords import pixel_grid, pixel_to_lonlat
-
-    root.mkdir(parents=True)
-    W, H = 256, 128
-    ll = np.rad2deg(pixel_to_lonlat(pixel_grid(W, H), W, H))
-    for i in range(n):
-        d = root / f"room-{i:04d}"
-        d.mkdir()
-        rgb = np.full((H, W, 3), 120, np.uint8)
-        inst = np.zeros((H, W), np.uint16)
-        objs = []
-        for k, (label, lon, lat, colour) in enumerate((("tv", 30 + 50 * i, 0, (20, 20, 20)),
-                                                        ("bed", -90, -30, (200, 40, 40)))):
-            m = (np.abs(ll[..., 0] - lon) < 15) & (np.abs(ll[..., 1] - lat) < 10)
-            rgb[m] = colour
-            inst[m] = k + 1
-            objs.append({"class": label, "bbox_pano": mask_to_pano_box(m).tolist(), "visible_px": int(m.sum())})
-        cv2.imwrite(str(d / "pano.png"), rgb[..., ::-1])
-        cv2.imwrite(str(d / "instances.png"), inst)
-        (d / "gt.json").write_text(json.dumps({"image": {"width": W, "height": H}, "objects": objs}))
-    (root / "index.json").write_text(json.dumps({"seed": seed}))
-    return root
-
-
-def test_training_cli_writes_weights_and_record(tmp_path):
+def test_training_cli_writes_weights_and_record(tmp_path, synth):
     from detect.builtin.train import main
 
-    data = _fake_rooms(tmp_path / "train", 3000, 2)
-    val = _fake_rooms(tmp_path / "val", 3500)
+    data = synth.fake_rooms(tmp_path / "train", 3000, 2)
+    val = synth.fake_rooms(tmp_path / "val", 3500)
     out = tmp_path / "w"
     assert main(["--data", str(data), "--val", str(val), "--out", str(out), "--iterations", "2",
                  "--batch", "2", "--size", "64"]) == 0
@@ -186,15 +157,15 @@ def test_training_cli_writes_weights_and_record(tmp_path):
     assert rec["training"]["iterations"] == 2 and rec["data"]["train_rooms"] == 2
     assert rec["data"]["train_seed"] == 3000 and set(rec["validation"]["ap"]) == set(rec["classes"])
     assert BuiltinDetector(out / "builtin.pt").input_size == 64
-    seed0 = _fake_rooms(tmp_path / "seed0", 0)
+    seed0 = synth.fake_rooms(tmp_path / "seed0", 0)
     assert main(["--data", str(seed0), "--val", str(val), "--out", str(out), "--iterations", "1"]) == 2
 
 
-def test_training_continues_from_weights_on_another_tile_size(tmp_path):
+def test_training_continues_from_weights_on_another_tile_size(tmp_path, synth):
     from detect.builtin.train import main
 
-    data = _fake_rooms(tmp_path / "train", 3000, 2)
-    val = _fake_rooms(tmp_path / "val", 3500)
+    data = synth.fake_rooms(tmp_path / "train", 3000, 2)
+    val = synth.fake_rooms(tmp_path / "val", 3500)
     first, second = tmp_path / "w1", tmp_path / "w2"
     assert main(["--data", str(data), "--val", str(val), "--out", str(first), "--iterations", "1",
                  "--batch", "2", "--size", "64"]) == 0
