@@ -1,11 +1,12 @@
 """Train the box-edge refiner (:mod:`detect.builtin.refine`) on the project's synthetic rooms.
 
-Run::
+Run (the committed weights; their record ``refine.json`` keeps the command)::
 
     pano2cad synth --rooms 1600 --seed 3000 --size 1024 --out out/train3000
+    pano2cad synth --rooms 1600 --seed 5000 --size 1024 --out out/train5000
     pano2cad synth --rooms 30 --seed 7000 --size 1024 --out out/tune7000
-    python -m detect.builtin.train_refine --data out/train3000 --val out/tune7000 --out out/refine \\
-        --rooms 1200 --minutes 25
+    python -m detect.builtin.train_refine --data out/train3000 out/train5000 --val out/tune7000 \\
+        --out out/refine --rooms 1600 --jitters 4 --views 8 --minutes 30
 
 Samples: in each room, tiles aimed at objects (:func:`~detect.builtin.data.random_view`) and, one in four, tiles
 of the builtin detector's set (:func:`~detect.builtin.backend.builtin_views`), 576 pixels; in each tile, every object the
