@@ -602,12 +602,15 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
     silhouettes: list = [None] * len(dets)
     refine = [d.tile is not None and p is not None for d, p in zip(dets, poses)]
     if options.box_edges.startswith("net") and any(refine):
-        from detect.builtin.refine import BoxRefiner
+        from detect.builtin.refine import default_refiner
 
         with prog.stage("refine", "box edges refined by the edge network"):
-            refiner = BoxRefiner()
             # only the objects the box fits will see (those with a pose)
-            dets = [refiner.refine(upright, d) if r else d for d, r in zip(dets, refine)]
+            todo = [i for i, r in enumerate(refine) if r]
+            dets = list(dets)
+            for i, d in zip(todo, default_refiner().refine_detections(upright, [dets[i] for i in todo])):
+                dets[i] = d
+            prog.say(f"  {sum(max(1, len(dets[i].views)) for i in todo)} tile boxes of {len(todo)} objects refined")
     if options.box_edges.endswith("silhouette") and any(refine):
         from detect.grabcut import silhouette_box
 

@@ -39,6 +39,7 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -46,15 +47,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from panogeom.coords import ray_to_pixel
-from panogeom.sampling import EquirectSampler
+from panogeom.sampling import sample_equirect
 
 from ..detection import Detection, TileBox, check_rgb_image
 from .backend import load_network, save_network
 from .model import torch_module
 
 __all__ = ["RefineConfig", "box_window", "window_box", "apply_moves", "inout_targets", "decode_moves",
-           "build_refiner", "BoxRefiner",
-           "DEFAULT_REFINE_WEIGHTS", "save_refiner"]
+           "build_refiner", "network_moves", "BoxRefiner", "default_refiner", "DEFAULT_REFINE_WEIGHTS",
+           "save_refiner"]
 
 #: The committed refiner weights.
 DEFAULT_REFINE_WEIGHTS = Path(__file__).resolve().parent / "weights" / "refine.pt"
@@ -127,7 +128,7 @@ def box_window(pano: ArrayLike, tile: TileBox, size: int = 64, margin: float = 0
     v = y0 + (np.arange(s) + 0.5) * (y1 - y0) / s
     uu, vv = np.meshgrid(u, v)
     rays = tile.view.pixel_to_ray(np.stack([uu, vv], -1))
-    out = EquirectSampler.from_uv(ray_to_pixel(rays, W, H), W, H, "linear")(img)
+    out = sample_equirect(img, ray_to_pixel(rays, W, H), "linear")
     if s != size:
         out = cv2.resize(out, (int(size), int(size)), interpolation=cv2.INTER_AREA)
     return np.ascontiguousarray(out)
@@ -248,6 +249,19 @@ def build_refiner(config: RefineConfig) -> Any:
     return Refiner()
 
 
+def network_moves(net: Any, config: RefineConfig, windows: NDArray[np.uint8], onehot: NDArray[np.float32]
+                  ) -> NDArray[np.float64]:
+    """Edge moves (N, 4) a refiner network (in eval mode) reads on windows ``(N, S, S, 3) uint8`` of boxes of the
+    classes ``onehot`` (N, C): its inside probabilities decoded by :func:`decode_moves`."""
+    torch = torch_module()
+    if len(windows) == 0:
+        return np.zeros((0, 4))
+    x = torch.from_numpy(np.ascontiguousarray(windows, np.float32) / 255.0).permute(0, 3, 1, 2)
+    with torch.inference_mode():
+        inside = torch.sigmoid(net(x, torch.from_numpy(np.asarray(onehot, np.float32)))).numpy()
+    return decode_moves(inside, config.margin)
+
+
 def save_refiner(net: Any, config: RefineConfig, path: str | Path) -> Path:
     """Write the refiner's weights and config to ``path`` (a ``.pt`` file), atomically."""
     return save_network(net, "pano2cad/box-refiner@1", config.to_json(), path)
@@ -291,19 +305,13 @@ class BoxRefiner:
         return dict(json.loads(p.read_text(encoding="utf-8"))) if p.is_file() else {}
 
     def moves(self, windows: NDArray[np.uint8], labels: Sequence[str]) -> NDArray[np.float64]:
-        """The network's edge moves for windows ``(N, S, S, 3) uint8`` of boxes of classes ``labels``: (N, 4)."""
-        torch = torch_module()
-        n = len(labels)
-        if n == 0:
-            return np.zeros((0, 4))
-        onehot = np.zeros((n, len(self.config.classes)), np.float32)
+        """The network's edge moves for windows ``(N, S, S, 3) uint8`` of boxes of classes ``labels``: (N, 4).
+        A class the network was not trained on reads with an all-zero class input."""
+        onehot = np.zeros((len(labels), len(self.config.classes)), np.float32)
         for i, c in enumerate(labels):
             if c in self.config.classes:
                 onehot[i, self.config.classes.index(c)] = 1.0
-        x = torch.from_numpy(np.ascontiguousarray(windows, np.float32) / 255.0).permute(0, 3, 1, 2)
-        with torch.inference_mode():
-            inside = torch.sigmoid(self._net(x, torch.from_numpy(onehot))).numpy()
-        return decode_moves(inside, self.config.margin)
+        return network_moves(self._net, self.config, windows, onehot)
 
     def refine_tiles(self, pano: ArrayLike, tiles: Sequence[TileBox], labels: Sequence[str]) -> list[TileBox]:
         """Refined copies of tile boxes (one class per box); edges at the tile border stay."""
@@ -322,8 +330,22 @@ class BoxRefiner:
 
     def refine(self, pano: ArrayLike, det: Detection) -> Detection:
         """A detection with its tile boxes (``tile`` and ``views``) refined; one without a tile is returned as is."""
-        if det.tile is None:
-            return det
-        tiles = list(det.views) or [det.tile]   # ``views`` starts with ``tile`` when not empty
-        new = self.refine_tiles(pano, tiles, [det.label] * len(tiles))
-        return replace(det, tile=new[0], views=tuple(new) if det.views else ())
+        return self.refine_detections(pano, [det])[0]
+
+    def refine_detections(self, pano: ArrayLike, dets: Sequence[Detection]) -> list[Detection]:
+        """:meth:`refine` of every detection, their tile boxes in one batch per pass."""
+        # ``views`` starts with ``tile`` when not empty
+        tiles = [list(d.views) or [d.tile] if d.tile is not None else [] for d in dets]
+        flat = self.refine_tiles(pano, [t for ts in tiles for t in ts],
+                                 [d.label for d, ts in zip(dets, tiles) for _ in ts])
+        out, k = [], 0
+        for d, ts in zip(dets, tiles):
+            new, k = flat[k:k + len(ts)], k + len(ts)
+            out.append(d if not ts else replace(d, tile=new[0], views=tuple(new) if d.views else ()))
+        return out
+
+
+@lru_cache(maxsize=2)
+def default_refiner(passes: int = 2) -> BoxRefiner:
+    """The refiner on the committed weights, loaded once per process (what ``pano2cad run`` uses)."""
+    return BoxRefiner(passes=passes)

@@ -46,7 +46,7 @@ from .backend import builtin_views
 from .data import KNOWN_CLASSES, augment, load_room, random_view, room_folders, tile_labels
 from .model import torch_module
 from .train import _seed_of
-from .refine import RefineConfig, box_window, build_refiner, decode_moves, inout_targets, save_refiner
+from .refine import RefineConfig, box_window, build_refiner, inout_targets, network_moves, save_refiner
 
 TILE = 576
 SIGMA = (0.01, 0.2)
@@ -122,28 +122,23 @@ def edge_errors_deg(samples: dict[str, NDArray], moves: NDArray) -> NDArray[np.f
 
 def _predict(net: Any, samples: dict[str, NDArray], config: RefineConfig, batch: int = 512) -> NDArray[np.float64]:
     """Edge moves (N, 4) the network reads on the samples' windows (one pass)."""
-    torch = torch_module()
-    out = []
+    eye = np.eye(len(config.classes), dtype=np.float32)
     net.eval()
-    with torch.inference_mode():
-        for i in range(0, len(samples["classes"]), batch):
-            x = torch.from_numpy(samples["windows"][i:i + batch].astype(np.float32) / 255.0).permute(0, 3, 1, 2)
-            c = torch.nn.functional.one_hot(torch.from_numpy(samples["classes"][i:i + batch]),
-                                            len(config.classes)).float()
-            out.append(decode_moves(torch.sigmoid(net(x, c)).numpy(), config.margin))
+    out = [network_moves(net, config, samples["windows"][i:i + batch], eye[samples["classes"][i:i + batch]])
+           for i in range(0, len(samples["classes"]), batch)]
     net.train()
-    return np.concatenate(out).astype(np.float64)
+    return np.concatenate(out)
 
 
 def _summary(err: NDArray[np.float64]) -> dict[str, Any]:
     a = np.abs(err)
-    return {"mad_deg": np.median(a, 0).round(3).tolist(), "mean_abs_deg": a.mean(0).round(3).tolist(),
+    return {"median_abs_deg": np.median(a, 0).round(3).tolist(), "mean_abs_deg": a.mean(0).round(3).tolist(),
             "within_0.5": (a <= 0.5).mean(0).round(3).tolist(), "over_2": (a > 2.0).mean(0).round(3).tolist()}
 
 
 def train(data: list[Path], val: Path, out: Path, *, rooms: int, val_rooms: int, minutes: float, seed: int,
           iterations: int | None = None, batch: int = 128, lr: float = 2e-3, workers: int = 2,
-          views_per_room: int = 8, jitters: int = 3, threads: int | None = None) -> dict[str, Any]:
+          views_per_room: int = 8, jitters: int = 3) -> dict[str, Any]:
     """Train for ``minutes`` of wall time (or ``iterations``, whichever ends first); save ``out/refine.pt`` and
     ``out/refine.json``; return the record."""
     if any(_seed_of(d) == 0 for d in data) or _seed_of(val) == 0:
@@ -151,8 +146,6 @@ def train(data: list[Path], val: Path, out: Path, *, rooms: int, val_rooms: int,
     if not all(room_folders(d) for d in data) or not room_folders(val):
         raise ValueError(f"expected synthetic rooms (folders with gt.json) under {', '.join(map(str, data))} and {val}")
     torch = torch_module()
-    if threads:
-        torch.set_num_threads(int(threads))
     torch.manual_seed(seed)
     config = RefineConfig(tuple(KNOWN_CLASSES))
     t0 = time.time()

@@ -163,18 +163,19 @@ def test_box_edges_refined_by_the_network_or_the_silhouettes_unless_told_not_to(
 
     assert RunOptions().box_edges == "net"
     calls, refined = [], []
-    real, real_refine = detect.grabcut.silhouette_box, BoxRefiner.refine
+    real, real_refine = detect.grabcut.silhouette_box, BoxRefiner.refine_detections
 
     def spy(*args, **kwargs):
         calls.append(real(*args, **kwargs))
         return calls[-1]
 
-    def spy_refine(self, pano, det):
-        refined.append((det, real_refine(self, pano, det)))
-        return refined[-1][1]
+    def spy_refine(self, pano, dets):
+        out = real_refine(self, pano, dets)
+        refined.extend(zip(dets, out))
+        return out
 
     monkeypatch.setattr(detect.grabcut, "silhouette_box", spy)
-    monkeypatch.setattr(BoxRefiner, "refine", spy_refine)
+    monkeypatch.setattr(BoxRefiner, "refine_detections", spy_refine)
     timings, counts = {}, {}
     for mode in ("net", "silhouette", "detector"):
         out = tmp_path / mode.replace("+", "_")

@@ -150,9 +150,16 @@ def test_committed_refiner_brings_detector_boxes_closer_on_a_held_back_room():
     dets = [d for d in detect_panorama(pano, det, views=det.views()) if d.tile is not None]
     before = _matched_errors(pano, dets, truth)
     refiner = BoxRefiner()
-    after = _matched_errors(pano, [refiner.refine(pano, d) for d in dets], truth)
+    one_by_one = [refiner.refine(pano, d) for d in dets]
+    after = _matched_errors(pano, one_by_one, truth)
     assert len(before) >= 3 and len(after) == len(before)
     assert after.mean() < 0.8 * before.mean(), (before.mean(), after.mean())
+    # all detections in one batch: the same boxes
+    batched = refiner.refine_detections(pano, dets)
+    assert len(batched) == len(dets)
+    for a, b in zip(one_by_one, batched):
+        assert len(a.views) == len(b.views) and np.allclose(a.tile.box, b.tile.box, atol=1e-3)
+        assert all(np.allclose(x.box, y.box, atol=1e-3) for x, y in zip(a.views, b.views))
 
 
 def test_training_cli_writes_weights_and_record(tmp_path, synth):
