@@ -643,3 +643,60 @@ def test_snap_keeps_a_yaw_whose_turn_would_overlap_a_neighbour():
     assert evaluated == 2
     assert prob.evaluate(np.array([1.0]), xy[None], got[None]).violation[0] == 0
     assert np.count_nonzero(got != yaw) <= 1
+
+
+def test_improved_yaw_moves_are_narrow_and_keep_right_yaws():
+    """The improved scheme proposes yaws with variance 0.003 rad^2 (the paper's 0.1 in paper mode): right initial
+    yaws, held by an E_o, end within half a degree of the start without the wall snap."""
+    assert SamplerConfig.improved().yaw_variance == 0.003 and SamplerConfig().yaw_variance == 0.1
+    pl, labels, dets, floor0, ceil0 = synthetic(3, yaw_noise_deg=0.0)
+    obs = observe_labels(labels, [d.bbox_pano for d in dets], width=256, object_pixels="matched")
+    lik = surface_likelihood(obs, floor0, ceil0, 1.6)
+    eo = [None if d.symmetric else (lambda y, m=d.yaw: 5.0 * (1.0 - np.cos(y - m))) for d in dets]
+    cfg = SamplerConfig.improved(n_samples=600, snap_yaw_deg=0.0)
+    res = map_estimate(lik, dets, image_width=W, image_height=W // 2, orientation=eo, config=cfg, rng=0)
+    check_valid(res.scene)
+    off = [abs(math.degrees(math.remainder(o.yaw - d.yaw, 2 * math.pi)))
+           for o, d in zip(res.scene.objects, dets) if not d.symmetric]
+    assert len(off) == 3 and max(off) < 0.5
+
+
+def test_yaw_moves_are_wide_while_the_seed_is_invalid():
+    """``invalid_yaw_variance``: an epoch whose seed violates a hard constraint draws its yaw moves with that
+    variance (the improved scheme: the paper's 0.1), a valid seed with ``yaw_variance`` (0.003)."""
+    from layout.sampler import _improved_epoch, _Problem, _State
+
+    pl, labels, dets, floor0, ceil0 = synthetic(5, yaw_noise_deg=0.0)
+    lik = surface_likelihood(observe_labels(labels, [d.bbox_pano for d in dets], width=128,
+                                            object_pixels="matched"), floor0, ceil0, 1.6)
+    cfg = SamplerConfig.improved(n_samples=300)
+    assert cfg.yaw_variance == 0.003 and cfg.invalid_yaw_variance == 0.1 and SamplerConfig().invalid_yaw_variance is None
+    prob = _Problem(lik, dets, orientation_likelihood(None, [d.cls for d in dets]), cfg, W, W // 2)
+    lam = pl.camera_height / 1.6
+    n = len(dets)
+
+    class Recorder:
+        """A numpy Generator that records the scales of the zero-mean normal draws of shape (n, s): the yaw moves."""
+
+        def __init__(self):
+            self.g, self.scales = np.random.default_rng(0), []
+
+        def normal(self, loc=0.0, scale=1.0, size=None):
+            if size == (n, int(cfg.samples_per_epoch)) and loc == 0.0:
+                self.scales.append(float(scale))
+            return self.g.normal(loc, scale, size)
+
+        def __getattr__(self, name):
+            return getattr(self.g, name)
+
+    xy_ok, yaw_ok = pl.centers[:, :2].copy(), pl.yaws.copy()
+    xy_bad = xy_ok.copy()
+    xy_bad[0] = 0.02  # on the camera
+    for xy, expected in ((xy_ok, 0.003), (xy_bad, 0.1)):
+        seed = prob.evaluate(np.array([lam]), xy[None], yaw_ok[None])
+        assert (seed.violation[0] > 0) == (expected == 0.1)
+        rec = Recorder()
+        _improved_epoch(prob, _State(lam, xy.copy(), yaw_ok.copy(), float(seed.key[0]), seed), 1.0, rec)
+        assert rec.scales == [pytest.approx(math.sqrt(expected))]
+    with pytest.raises(ValueError, match="invalid_yaw_variance"):
+        SamplerConfig(invalid_yaw_variance=0.0)
