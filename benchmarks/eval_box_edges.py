@@ -114,7 +114,9 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("data", type=Path, help="a synthetic set (pano2cad synth output), not the evaluation set")
     ap.add_argument("--rooms", type=int, default=30)
-    ap.add_argument("--refine", type=Path, nargs="?", const=Path("detect/builtin/weights/refine.pt"),
+    from detect.builtin.refine import DEFAULT_REFINE_WEIGHTS
+
+    ap.add_argument("--refine", type=Path, nargs="?", const=DEFAULT_REFINE_WEIGHTS,
                     help="also the edges of the box-edge network (detect.builtin.refine; default: its committed "
                          "weights)")
     ap.add_argument("--update-docs", action="store_true", help="write the section into docs/EVALUATION.md")

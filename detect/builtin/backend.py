@@ -98,6 +98,10 @@ def load_record(weights: str | Path = DEFAULT_WEIGHTS) -> dict[str, Any]:
         raise ModelFileError(p, f"cannot read the weights record ({exc})") from None
 
 
+#: Format tag of the builtin detector's weights file.
+DETECTOR_FORMAT = "pano2cad/builtin-detector@1"
+
+
 def save_network(net: Any, fmt: str, config: dict[str, Any], path: str | Path) -> Path:
     """Write a network's weights (float32 state dict), its ``config`` and format tag ``fmt`` to ``path`` (a ``.pt``
     file), atomically: the builtin detector's and the box refiner's weights files."""
@@ -112,15 +116,18 @@ def save_network(net: Any, fmt: str, config: dict[str, Any], path: str | Path) -
     return p
 
 
-def load_network(path: Path, what: str, from_json: Callable[[dict[str, Any]], Any],
+def load_network(path: Path, what: str, fmt: str, from_json: Callable[[dict[str, Any]], Any],
                  build: Callable[[Any], Any]) -> tuple[Any, Any]:
-    """Read a weights file of :func:`save_network`: ``(config, network)``, the config parsed by ``from_json`` and
-    the network made by ``build(config)``. A missing or foreign file raises ModelFileError naming ``what``."""
+    """Read a weights file of :func:`save_network` with format tag ``fmt``: ``(config, network)``, the config
+    parsed by ``from_json`` and the network made by ``build(config)``. A missing or foreign file (another tag
+    included) raises ModelFileError naming ``what``."""
     torch = torch_module()
     if not path.is_file():
         raise ModelFileError(path, f"{what} weights not found")
     try:
         blob = torch.load(path, map_location="cpu", weights_only=True)
+        if blob.get("format") != fmt:
+            raise ValueError(f"format {blob.get('format')!r}, expected {fmt!r}")
         config = from_json(blob["config"])
         net = build(config)
         net.load_state_dict(blob["state_dict"])
@@ -131,7 +138,7 @@ def load_network(path: Path, what: str, from_json: Callable[[dict[str, Any]], An
 
 def save_weights(net: Any, config: NetConfig, path: str | Path) -> Path:
     """Write the detector network's weights and config to ``path`` (a ``.pt`` file), atomically."""
-    return save_network(net, "pano2cad/builtin-detector@1", config.to_json(), path)
+    return save_network(net, DETECTOR_FORMAT, config.to_json(), path)
 
 
 class BuiltinDetector:
@@ -188,7 +195,8 @@ class BuiltinDetector:
                  input_size: int | None = None, border_snap: float = 0.03, flip: bool | None = None) -> None:
         torch = torch_module()
         self.weights = Path(weights) if weights is not None else DEFAULT_WEIGHTS
-        config, net = load_network(self.weights, "builtin detector", NetConfig.from_json, build_network)
+        config, net = load_network(self.weights, "builtin detector", DETECTOR_FORMAT, NetConfig.from_json,
+                                   build_network)
         self.record = load_record(self.weights)
         if score_threshold is None:
             score_threshold = float(self.record.get("score_threshold", 0.3))

@@ -131,6 +131,20 @@ class LabelRules:
     big_side: float = 0.45
 
 
+def synth_seed(root: str | Path) -> int | None:
+    """The generator seed of a synthetic set (``index.json`` of ``pano2cad synth``); None if it does not say.
+
+    The training scripts refuse seed 0, the evaluation set.
+    """
+    idx = Path(root) / "index.json"
+    if idx.is_file():
+        try:
+            return int(json.loads(idx.read_text(encoding="utf-8"))["seed"])
+        except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError):
+            return None
+    return None
+
+
 def room_folders(root: str | Path) -> list[Path]:
     """Room folders (those holding a gt.json) under ``root``, sorted.
 

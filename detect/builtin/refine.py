@@ -57,6 +57,8 @@ __all__ = ["RefineConfig", "box_window", "window_box", "apply_moves", "inout_tar
            "build_refiner", "network_moves", "BoxRefiner", "default_refiner", "DEFAULT_REFINE_WEIGHTS",
            "save_refiner"]
 
+#: Format tag of the refiner's weights file.
+REFINER_FORMAT = "pano2cad/box-refiner@1"
 #: The committed refiner weights.
 DEFAULT_REFINE_WEIGHTS = Path(__file__).resolve().parent / "weights" / "refine.pt"
 
@@ -264,7 +266,7 @@ def network_moves(net: Any, config: RefineConfig, windows: NDArray[np.uint8], on
 
 def save_refiner(net: Any, config: RefineConfig, path: str | Path) -> Path:
     """Write the refiner's weights and config to ``path`` (a ``.pt`` file), atomically."""
-    return save_network(net, "pano2cad/box-refiner@1", config.to_json(), path)
+    return save_network(net, REFINER_FORMAT, config.to_json(), path)
 
 
 class BoxRefiner:
@@ -293,7 +295,8 @@ class BoxRefiner:
         if not float(max_move) > 0.0:
             raise ValueError(f"max_move: expected a fraction > 0, got {max_move!r}")
         self.weights = Path(weights) if weights is not None else DEFAULT_REFINE_WEIGHTS
-        self.config, net = load_network(self.weights, "box refiner", RefineConfig.from_json, build_refiner)
+        self.config, net = load_network(self.weights, "box refiner", REFINER_FORMAT, RefineConfig.from_json,
+                                        build_refiner)
         self.passes = int(passes)
         self.max_move = float(max_move)
         self._net = net.eval()

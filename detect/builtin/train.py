@@ -47,7 +47,7 @@ import numpy as np
 
 from ..backends._common import KNOWN_CLASSES
 from .backend import BuiltinDetector, builtin_views, save_weights
-from .data import TileSampler, load_rooms, room_folders
+from .data import TileSampler, load_rooms, room_folders, synth_seed
 from .evaluate import DIFFICULT_FRACTION, detect_rooms, evaluate, load_ground_truth, tune_score_threshold
 from .model import STRIDE, NetConfig, build_network, torch_module
 
@@ -105,16 +105,6 @@ def detection_loss(outputs: tuple[Any, Any, Any], targets: dict[str, Any]) -> tu
     return loss, {"heat": l_heat.item(), "size": l_size.item(), "offset": l_off.item()}
 
 
-def _seed_of(root: Path) -> int | None:
-    idx = root / "index.json"
-    if idx.is_file():
-        try:
-            return int(json.loads(idx.read_text(encoding="utf-8"))["seed"])
-        except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError):
-            return None
-    return None
-
-
 def train(data: Path, val: Path, out: Path, *, iterations: int | None = None, minutes: float | None = None,
           batch: int = 16, size: int = 160, lr: float = 3e-3, seed: int = 0, threads: int = 2,
           widths: tuple[int, ...] = NetConfig.widths, head: int = NetConfig.head, val_rooms: int | None = None,
@@ -127,7 +117,7 @@ def train(data: Path, val: Path, out: Path, *, iterations: int | None = None, mi
     """
     if (iterations is None) == (minutes is None):
         raise ValueError(f"expected exactly one of iterations and minutes, got {iterations!r} and {minutes!r}")
-    if _seed_of(data) == 0 or _seed_of(val) == 0:
+    if synth_seed(data) == 0 or synth_seed(val) == 0:
         raise ValueError("seed 0 is the evaluation set: expected training and validation rooms of other seeds")
     torch = torch_module()
     torch.set_num_threads(int(threads))
@@ -208,7 +198,7 @@ def train(data: Path, val: Path, out: Path, *, iterations: int | None = None, mi
         "classes": list(classes),
         "network": {**config.to_json(), "stride": STRIDE, "parameters": n_params,
                     "kind": "CenterNet-style heatmap + log-size + offset, FPN to stride 4"},
-        "data": {"train_dir": str(data), "train_seed": _seed_of(data), "train_rooms": len(rooms),
+        "data": {"train_dir": str(data), "train_seed": synth_seed(data), "train_rooms": len(rooms),
                  "pano_width": int(rooms[0].rgb.shape[1])},
         "training": {"command": " ".join(["python", "-m", "detect.builtin.train", *sys.argv[1:]]),
                      "iterations": it, "batch": batch, "tiles_seen": it * batch, "lr": lr, "optimizer": "AdamW",
@@ -254,7 +244,7 @@ def validate(out: Path, val: Path, record: dict[str, Any] | None = None, *, val_
     F1 (all classes) on it.
     ``record`` (default: the existing ``out/builtin.json``) gets the results.
     """
-    if _seed_of(val) == 0:
+    if synth_seed(val) == 0:
         raise ValueError("seed 0 is the evaluation set: expected validation rooms of another seed")
     wpath = out / "builtin.pt"
     rpath = out / "builtin.json"
@@ -286,7 +276,7 @@ def validate(out: Path, val: Path, record: dict[str, Any] | None = None, *, val_
     run(size, wide, True)
     size, wide, flip = max(results, key=score)
     res, thr = results[(size, wide, flip)]
-    record["data"] = {**record.get("data", {}), "val_dir": str(val), "val_seed": _seed_of(val),
+    record["data"] = {**record.get("data", {}), "val_dir": str(val), "val_seed": synth_seed(val),
                       "val_rooms": len(folders)}
     record["input_size"] = size
     record["flip"] = bool(flip)

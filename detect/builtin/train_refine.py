@@ -43,9 +43,8 @@ from numpy.typing import NDArray
 
 from ..detection import TileBox
 from .backend import builtin_views
-from .data import KNOWN_CLASSES, augment, load_room, random_view, room_folders, tile_labels
+from .data import KNOWN_CLASSES, augment, load_room, random_view, room_folders, synth_seed, tile_labels
 from .model import torch_module
-from .train import _seed_of
 from .refine import RefineConfig, box_window, build_refiner, inout_targets, network_moves, save_refiner
 
 TILE = 576
@@ -141,7 +140,7 @@ def train(data: list[Path], val: Path, out: Path, *, rooms: int, val_rooms: int,
           views_per_room: int = 8, jitters: int = 3) -> dict[str, Any]:
     """Train for ``minutes`` of wall time (or ``iterations``, whichever ends first); save ``out/refine.pt`` and
     ``out/refine.json``; return the record."""
-    if any(_seed_of(d) == 0 for d in data) or _seed_of(val) == 0:
+    if any(synth_seed(d) == 0 for d in data) or synth_seed(val) == 0:
         raise ValueError("seed 0 is the evaluation set: expected training and validation rooms of other seeds")
     if not all(room_folders(d) for d in data) or not room_folders(val):
         raise ValueError(f"expected synthetic rooms (folders with gt.json) under {', '.join(map(str, data))} and {val}")
@@ -203,8 +202,8 @@ def train(data: list[Path], val: Path, out: Path, *, rooms: int, val_rooms: int,
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "command": "python -m detect.builtin.train_refine " + " ".join(sys.argv[1:]),
         "network": {**config.to_json(), "parameters": int(sum(p.numel() for p in net.parameters()))},
-        "data": {"train_dirs": [str(d) for d in data], "train_seeds": [_seed_of(d) for d in data],
-                 "train_rooms": rooms, "train_samples": n, "val_dir": str(val), "val_seed": _seed_of(val),
+        "data": {"train_dirs": [str(d) for d in data], "train_seeds": [synth_seed(d) for d in data],
+                 "train_rooms": rooms, "train_samples": n, "val_dir": str(val), "val_seed": synth_seed(val),
                  "val_rooms": val_rooms, "val_samples": int(len(va["classes"])), "views_per_room": views_per_room,
                  "jitters": jitters, "sigma": list(SIGMA), "tile": TILE, "sample_seconds": round(gen_s, 1)},
         "training": {"iterations": it, "batch": batch, "lr": lr, "optimizer": "AdamW", "weight_decay": 1e-4,

@@ -109,6 +109,10 @@ def test_bad_weights_and_options_are_refused(tmp_path):
     (tmp_path / "junk.pt").write_bytes(b"not a model")
     with pytest.raises(ModelFileError, match="not box refiner weights"):
         BoxRefiner(tmp_path / "junk.pt")
+    from detect.builtin.backend import DEFAULT_WEIGHTS
+
+    with pytest.raises(ModelFileError, match="not box refiner weights.*builtin-detector"):
+        BoxRefiner(DEFAULT_WEIGHTS)   # the detector's weights file: another format tag
     with pytest.raises(ValueError, match="passes"):
         BoxRefiner(passes=0)
 
