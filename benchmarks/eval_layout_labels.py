@@ -22,7 +22,9 @@ On the generator's labels, the rooms the room step gets worst are listed
 (``--worst``) with their corner counts and the columns where floor that the
 labels show (unmasked floor pixels) lies beyond the polygon's wall, more
 than 2 rows above its floor boundary (:func:`floor_beyond`): where there is none, the polygon
-agrees with every floor pixel and what it misses no floor pixel shows. The run's label
+agrees with every floor pixel and what it misses no floor pixel shows. With ``--hidden`` the generator's figures
+are also split by whether the room's view shows its corner count (``_hidden_walls.py``: a polygon with fewer
+corners, an unseen run of walls replaced, explains every pixel as well where it does not). The run's label
 maps are in its rectified frame, which for the upright synthetic panoramas is
 the input's to a fraction of a degree.
 """
@@ -83,8 +85,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("run", type=Path, help="pano2cad eval output on it (label_ids.png per room)")
     ap.add_argument("--worst", type=int, default=8,
                     help="list the rooms the labels cost most, and the rooms worst on the generator's labels")
+    ap.add_argument("--hidden", action="store_true",
+                    help="split the generator's figures by whether the view shows the room's corner count "
+                         "(needs depth.png; some 0.4 s per room)")
     args = ap.parse_args(argv)
-    rows, unsolved = [], []
+    if args.hidden:
+        from _hidden_walls import corner_count_shown, lift_view
+    rows, unsolved, shown = [], [], {}
     contact: dict[str, list[np.ndarray]] = {"ceiling": [], "floor": []}
     for room in sorted(p for p in args.data.iterdir() if (p / "gt.json").is_file()):
         pred = args.run / room.name / "label_ids.png"
@@ -111,6 +118,9 @@ def main(argv: list[str] | None = None) -> int:
                 truth = lab
                 beyond = floor_beyond(lab, mask, np.asarray(g.floor), float(g.ceiling_z), h)
                 extra = (len(g.floor), len(gt["room"]["floor"]), beyond)
+                if args.hidden:
+                    view = lift_view(lab, np.array(Image.open(room / "depth.png")))
+                    shown[room.name] = corner_count_shown(np.asarray(gt["room"]["floor"], float), view)
         rows.append((room.name, *ious, *extra))
         if extra:
             for kind, d in contact_row_errors(truth, lab).items():
@@ -139,7 +149,27 @@ def main(argv: list[str] | None = None) -> int:
     print(f"generator's labels: {len(beyond)} of {len(solved)} rooms leave floor the labels show outside the polygon; "
           "worst rooms (3D IoU, corners ours / gt, columns of floor beyond): " + "; ".join(
               f"{r[0]} {r[1]:.2f} {r[3]}/{r[4]} {r[5]}" for r in sorted(solved, key=lambda r: r[1])[: args.worst]))
+    if args.hidden:
+        print(hidden_split(solved, shown))
     return 0
+
+
+def hidden_split(solved: list[tuple], shown: dict[str, bool]) -> str:
+    """The generator's-label figures (rows ``(room, iou_gt, iou_run, corners, gt corners, beyond)``) split by
+    ``shown[room]``: whether the room's view shows its corner count."""
+    yes = [r for r in solved if shown.get(r[0], True)]
+    no = [r for r in solved if not shown.get(r[0], True)]
+
+    def figs(rs: list[tuple]) -> str:
+        if not rs:
+            return "none"
+        return (f"3D IoU {np.mean([r[1] for r in rs]):.3f}, exact corner count "
+                f"{100 * np.mean([r[3] == r[4] for r in rs]):.1f} %")
+
+    return (f"the view shows the corner count in {len(yes)} of {len(solved)} rooms (at least {len(no)} leave it "
+            f"open: {', '.join(r[0] for r in no) or 'none'}); generator's labels where shown: {figs(yes)}; where "
+            f"not: {figs(no)}; exact corner count possible without guessing unseen walls: at most "
+            f"{100 * len(yes) / max(len(solved), 1):.1f} %")
 
 
 if __name__ == "__main__":
