@@ -175,14 +175,18 @@ def explains_view(polygon: ArrayLike, view: ViewPoints, *, tol: float = 0.03, ra
     return bool(points_in_polygon(along.reshape(-1, 2), p, margin=-tol / 2).all())
 
 
-def corner_count_shown(polygon: ArrayLike, view: ViewPoints, *, max_walls: int = 2) -> bool:
-    """False when a polygon with fewer corners than ``polygon`` (counter-clockwise), made by replacing a run of two
-    or more unseen walls, explains ``view`` as well (:func:`explains_view`)."""
+def fewer_corner_explanations(polygon: ArrayLike, view: ViewPoints, *, max_walls: int = 2) -> list[FloatArray]:
+    """Polygons with fewer corners than ``polygon`` (counter-clockwise), each made by replacing one run of two or
+    more unseen walls (:func:`fewer_wall_polygons`), that explain ``view`` as well (:func:`explains_view`)."""
     p = np.asarray(polygon, float)
+    out = []
     for first, count in hidden_runs(seen_walls(p, view)):
-        if count < 2:
-            continue
-        if any(explains_view(q, view) for q in fewer_wall_polygons(p, first, count, max_walls=max_walls)
-               if len(q) < len(p)):
-            return False
-    return True
+        if count >= 2:
+            out += [q for q in fewer_wall_polygons(p, first, count, max_walls=max_walls)
+                    if len(q) < len(p) and explains_view(q, view)]
+    return out
+
+
+def corner_count_shown(polygon: ArrayLike, view: ViewPoints, *, max_walls: int = 2) -> bool:
+    """False when a polygon with fewer corners explains ``view`` as well (:func:`fewer_corner_explanations`)."""
+    return not fewer_corner_explanations(polygon, view, max_walls=max_walls)
