@@ -8,6 +8,9 @@ Run (the committed weights; their record ``refine.json`` keeps the command)::
     python -m detect.builtin.train_refine --data out/train3000 out/train5000 --val out/tune7000 \\
         --out out/refine --rooms 1600 --jitters 4 --views 8 --minutes 30
 
+To go on training from weights already made (a lower rate, other jitters), add ``--init
+detect/builtin/weights/refine.pt --lr 5e-4 --seed 1``; the new record keeps the old one under ``init``.
+
 Samples: in each room, tiles aimed at objects (:func:`~detect.builtin.data.random_view`) and, one in four, tiles
 of the builtin detector's set (:func:`~detect.builtin.backend.builtin_views`), 576 pixels; in each tile, every object the
 detector is trained to find (:func:`~detect.builtin.data.tile_labels`) whose box does not touch the tile border.
@@ -45,7 +48,7 @@ from ..detection import TileBox
 from .backend import builtin_views
 from .data import KNOWN_CLASSES, augment, load_room, random_view, room_folders, synth_seed, tile_labels
 from .model import torch_module
-from .refine import RefineConfig, box_window, build_refiner, inout_targets, network_moves, save_refiner
+from .refine import BoxRefiner, RefineConfig, box_window, build_refiner, inout_targets, network_moves, save_refiner
 
 TILE = 576
 SIGMA = (0.01, 0.2)
@@ -137,9 +140,10 @@ def _summary(err: NDArray[np.float64]) -> dict[str, Any]:
 
 def train(data: list[Path], val: Path, out: Path, *, rooms: int, val_rooms: int, minutes: float, seed: int,
           iterations: int | None = None, batch: int = 128, lr: float = 2e-3, workers: int = 2,
-          views_per_room: int = 8, jitters: int = 3) -> dict[str, Any]:
+          views_per_room: int = 8, jitters: int = 3, init: Path | None = None) -> dict[str, Any]:
     """Train for ``minutes`` of wall time (or ``iterations``, whichever ends first); save ``out/refine.pt`` and
-    ``out/refine.json``; return the record."""
+    ``out/refine.json``; return the record. ``init``: a refiner's ``.pt`` file (:func:`save_refiner`) to go on
+    training from instead of random weights; its record is kept as the ``init`` entry of the new one."""
     if any(synth_seed(d) == 0 for d in data) or synth_seed(val) == 0:
         raise ValueError("seed 0 is the evaluation set: expected training and validation rooms of other seeds")
     if not all(room_folders(d) for d in data) or not room_folders(val):
@@ -147,6 +151,9 @@ def train(data: list[Path], val: Path, out: Path, *, rooms: int, val_rooms: int,
     torch = torch_module()
     torch.manual_seed(seed)
     config = RefineConfig(tuple(KNOWN_CLASSES))
+    start = BoxRefiner(init) if init is not None else None  # read before the minutes of sampling: fail early
+    if start is not None and start.config != config:
+        raise ValueError(f"{init}: a refiner of another shape or class list than this script trains")
     t0 = time.time()
     tr = make_samples(data, rooms, seed, config, views_per_room, jitters, True, workers)
     va = make_samples([val], val_rooms, seed + 1, config, views_per_room, 1, False, workers)
@@ -154,7 +161,7 @@ def train(data: list[Path], val: Path, out: Path, *, rooms: int, val_rooms: int,
     print(f"samples: {len(tr['classes'])} training, {len(va['classes'])} validation ({gen_s:.0f} s)", file=sys.stderr)
     if len(tr["classes"]) == 0 or len(va["classes"]) == 0:
         raise ValueError("no objects to learn from: the rooms show no object of the detector's classes whole")
-    net = build_refiner(config)
+    net = build_refiner(config) if start is None else start._net.train()
     opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
     n = len(tr["classes"])
     rng = np.random.default_rng(seed)
@@ -213,6 +220,8 @@ def train(data: list[Path], val: Path, out: Path, *, rooms: int, val_rooms: int,
                      "cpu_s": round(time.process_time() - cpu0, 1), "history": history},
         "validation": {"input boxes": before, "one pass": after1},
     }
+    if start is not None:
+        record["init"] = {"weights": str(init), "record": start.record}
     (out / "refine.json").write_text(json.dumps(record, indent=1), encoding="utf-8")
     return record
 
@@ -232,11 +241,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     p.add_argument("--views", type=int, default=8, help="tiles per room")
     p.add_argument("--jitters", type=int, default=3, help="input boxes per object and tile")
+    p.add_argument("--init", type=Path, default=None,
+                   help="go on training from these refiner weights (a refine.pt) instead of random ones")
     a = p.parse_args(argv)
     try:
         rec = train(a.data, a.val, a.out, rooms=a.rooms, val_rooms=a.val_rooms, minutes=a.minutes, seed=a.seed,
                     iterations=a.iterations, batch=a.batch, lr=a.lr, workers=a.workers, views_per_room=a.views,
-                    jitters=a.jitters)
+                    jitters=a.jitters, init=a.init)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -180,3 +180,25 @@ def test_training_cli_writes_weights_and_record(tmp_path, synth):
     assert BoxRefiner(out / "refine.pt").config.size == 64
     seed0 = synth.fake_rooms(tmp_path / "seed0", 0)
     assert main(["--data", str(seed0), "--val", str(val), "--out", str(out), "--iterations", "1"]) == 2
+
+
+def test_training_goes_on_from_given_weights(tmp_path, synth):
+    from detect.builtin.train_refine import main
+
+    data = synth.fake_rooms(tmp_path / "train", 3000, 2)
+    val = synth.fake_rooms(tmp_path / "val", 3500)
+    args = ["--data", str(data), "--val", str(val), "--rooms", "2", "--batch", "4", "--workers", "1", "--views",
+            "2", "--jitters", "1"]
+    assert main(args + ["--out", str(tmp_path / "a"), "--iterations", "2", "--seed", "1"]) == 0
+    # no iteration from the first weights: the second file reads every window as the first does
+    assert main(args + ["--out", str(tmp_path / "b"), "--iterations", "0", "--init", str(tmp_path / "a" / "refine.pt")]) == 0
+    rec = json.loads((tmp_path / "b" / "refine.json").read_text())
+    assert rec["init"]["weights"].endswith("refine.pt") and rec["init"]["record"]["training"]["iterations"] == 2
+    rng = np.random.default_rng(0)
+    wins = rng.integers(0, 256, (3, 64, 64, 3), dtype=np.uint8)
+    a = BoxRefiner(tmp_path / "a" / "refine.pt").moves(wins, ["bed", "chair", "tv"])
+    b = BoxRefiner(tmp_path / "b" / "refine.pt").moves(wins, ["bed", "chair", "tv"])
+    assert np.allclose(a, b)
+    assert main(args + ["--out", str(tmp_path / "r"), "--iterations", "0"]) == 0  # random weights read otherwise
+    assert not np.allclose(a, BoxRefiner(tmp_path / "r" / "refine.pt").moves(wins, ["bed", "chair", "tv"]))
+    assert main(args + ["--out", str(tmp_path / "c"), "--iterations", "1", "--init", str(tmp_path / "nope.pt")]) == 2
