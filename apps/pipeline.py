@@ -41,7 +41,9 @@ Stages, in the order of ARCHITECTURE.md ("Data flow of pano2cad run"):
    each candidate's footprint would reach through the walls of the room of
    step 5, and from the wall height it gives that room (a prior on ceilings)
 8. initial objects -> MAP sampling of scale, positions and yaws under E_s,
-   E_o and the context prior (:mod:`layout.sampler`)
+   E_o and the context prior (:mod:`layout.sampler`); before it, a wall
+   that two or more initial objects agree stand beyond moves out to them
+   (:mod:`layout.objectwalls`, noted in the warnings)
 
 Everything runs in the upright (rectified) frame; results are reported in
 the world frame of CONVENTIONS.md, with ``camera.rotation`` mapping the
@@ -720,6 +722,9 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
             except PosteriorError as exc:
                 raise RuntimeError(f"the sampler found no valid scene: {exc}") from None
     scene = post.scene
+    if post.wall_moves:
+        moved = ", ".join(f"{m.distance * scene.scale:.2f} m ({len(m.objects)} objects)" for m in post.wall_moves)
+        notes.append(f"moved {len(post.wall_moves)} wall(s) out to the objects that stand beyond them: {moved}")
 
     # Report in the world frame of the conventions: gravity-aligned with x along the horizontal projection of
     # the INPUT's centre column. We computed in the wall-aligned frame (walls on x/y), which is turned by the
