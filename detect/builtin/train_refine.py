@@ -23,7 +23,9 @@ input box (:func:`~detect.builtin.refine.box_window`) is augmented photometrical
 Loss: binary cross-entropy between the network's inside probabilities of the window's columns and rows and their
 true shares inside the box (:func:`~detect.builtin.refine.inout_targets`). AdamW, cosine decay,
 for ``--minutes`` of wall time. The validation rooms give the edge error in degrees (at the tile's focal
-length) before and after one pass; the best state on them is kept. Writes ``refine.pt`` and
+length) before and after one pass. The best state on them is kept, of those every 500 iterations, the last one
+and, with ``--init``, the given weights (so training further never returns worse ones; the record's
+``kept_iteration`` says which, 0 for the given weights). Writes ``refine.pt`` and
 ``refine.json`` (the record: command, data, training, validation) into ``--out``; copy both to
 ``detect/builtin/weights/`` to make them the default.
 """
@@ -169,7 +171,21 @@ def train(data: list[Path], val: Path, out: Path, *, rooms: int, val_rooms: int,
     before = _summary(edge_errors_deg(va, np.zeros_like(va["moves"], np.float64)))
     print(f"validation before: {before}", file=sys.stderr)
     budget = float(minutes) * 60.0
-    t1, it, best, best_state, history = time.time(), 0, math.inf, None, []
+    t1, it, best, best_state, best_it, history = time.time(), 0, math.inf, None, None, []
+
+    def validate() -> None:  # the state of iteration ``it`` on the validation samples; kept when the best so far
+        nonlocal best, best_state, best_it
+        score = float(np.abs(edge_errors_deg(va, _predict(net, va, config))).mean())
+        history.append({"iteration": it, "loss": round(loss.item(), 5) if it else None,
+                        "val_mean_abs_deg": round(score, 4)})
+        print(f"it {it}" + (f" loss {loss.item():.4f}" if it else "") + f" val mean |edge error| {score:.3f} deg "
+              f"({time.time() - t1:.0f} s)", file=sys.stderr)
+        if score < best:
+            best, best_state, best_it = score, {k: v.detach().clone() for k, v in net.state_dict().items()}, it
+
+    loss = None
+    if start is not None:  # the given weights are a candidate too: training further never returns worse ones
+        validate()
     cpu0 = time.process_time()
     while time.time() - t1 < budget and (iterations is None or it < iterations):
         frac = max((time.time() - t1) / budget, it / iterations if iterations else 0.0)
@@ -190,13 +206,9 @@ def train(data: list[Path], val: Path, out: Path, *, rooms: int, val_rooms: int,
         opt.step()
         it += 1
         if it % 500 == 0:
-            err = edge_errors_deg(va, _predict(net, va, config))
-            score = float(np.abs(err).mean())
-            history.append({"iteration": it, "loss": round(loss.item(), 5), "val_mean_abs_deg": round(score, 4)})
-            print(f"it {it} loss {loss.item():.4f} val mean |edge error| {score:.3f} deg "
-                  f"({time.time() - t1:.0f} s)", file=sys.stderr)
-            if score < best:
-                best, best_state = score, {k: v.detach().clone() for k, v in net.state_dict().items()}
+            validate()
+    if it % 500 != 0:  # the last state, where no check point fell on it
+        validate()
     if best_state is not None:
         net.load_state_dict(best_state)
     out.mkdir(parents=True, exist_ok=True)
@@ -217,7 +229,8 @@ def train(data: list[Path], val: Path, out: Path, *, rooms: int, val_rooms: int,
                      "schedule": "cosine decay over the wall-time budget",
                      "loss": "binary cross-entropy of the columns' and rows' inside shares",
                      "seed": seed, "threads": torch.get_num_threads(), "wall_s": round(time.time() - t1, 1),
-                     "cpu_s": round(time.process_time() - cpu0, 1), "history": history},
+                     "cpu_s": round(time.process_time() - cpu0, 1), "kept_iteration": best_it,
+                     "history": history},
         "validation": {"input boxes": before, "one pass": after1},
     }
     if start is not None:

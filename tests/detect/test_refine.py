@@ -182,7 +182,8 @@ def test_training_cli_writes_weights_and_record(tmp_path, synth):
     assert main(["--data", str(seed0), "--val", str(val), "--out", str(out), "--iterations", "1"]) == 2
 
 
-def test_training_goes_on_from_given_weights(tmp_path, synth):
+def _tiny_training(tmp_path, synth):
+    """train_refine's main and options on two fake rooms, after a first run of 2 iterations into tmp_path / "a"."""
     from detect.builtin.train_refine import main
 
     data = synth.fake_rooms(tmp_path / "train", 3000, 2)
@@ -190,6 +191,27 @@ def test_training_goes_on_from_given_weights(tmp_path, synth):
     args = ["--data", str(data), "--val", str(val), "--rooms", "2", "--batch", "4", "--workers", "1", "--views",
             "2", "--jitters", "1"]
     assert main(args + ["--out", str(tmp_path / "a"), "--iterations", "2", "--seed", "1"]) == 0
+    return main, args
+
+
+def test_training_further_never_returns_worse_weights(tmp_path, synth):
+    main, args = _tiny_training(tmp_path, synth)
+    # a rate that wrecks the weights in three steps: the given ones and the last state are both validated
+    assert main(args + ["--out", str(tmp_path / "b"), "--iterations", "3", "--lr", "50", "--init",
+                        str(tmp_path / "a" / "refine.pt")]) == 0
+    rec = json.loads((tmp_path / "b" / "refine.json").read_text())
+    hist = rec["training"]["history"]
+    assert [h["iteration"] for h in hist] == [0, 3]
+    kept = rec["training"]["kept_iteration"]
+    assert kept == (0 if hist[0]["val_mean_abs_deg"] <= hist[1]["val_mean_abs_deg"] else 3)
+    score = hist[0 if kept == 0 else 1]["val_mean_abs_deg"]
+    # the file written is the state kept: its validation after one pass is that state's score
+    assert np.mean(rec["validation"]["one pass"]["mean_abs_deg"]) == pytest.approx(score, abs=2e-3)
+    assert score <= hist[0]["val_mean_abs_deg"]
+
+
+def test_training_goes_on_from_given_weights(tmp_path, synth):
+    main, args = _tiny_training(tmp_path, synth)
     # no iteration from the first weights: the second file reads every window as the first does
     assert main(args + ["--out", str(tmp_path / "b"), "--iterations", "0", "--init", str(tmp_path / "a" / "refine.pt")]) == 0
     rec = json.loads((tmp_path / "b" / "refine.json").read_text())
