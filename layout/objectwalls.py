@@ -12,8 +12,8 @@ Not in the paper, whose layout is fixed before the objects are placed; :func:`la
 to the initial hypothesis in the improved scheme (``SamplerConfig.wall_move_objects``).
 
 Convention:
-    Floor polygons ``(K, 2)``, counter-clockwise, Manhattan, no repeated closing vertex; wall ``i`` runs from
-    vertex ``i`` to ``i + 1``. Footprints ``(N, 4, 2)`` in the same units (e.g. from
+    Floor polygons ``(K, 2)``, Manhattan, either orientation (the pipeline's are counter-clockwise), no repeated
+    closing vertex; wall ``i`` runs from vertex ``i`` to ``i + 1``. Footprints ``(N, 4, 2)`` in the same units (e.g. from
     :func:`layout.polygon.oriented_rectangles`).
 """
 
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .polygon import as_polygon, closest_segment, points_in_polygon, polygon_problems
+from .polygon import as_polygon, closest_segment, points_in_polygon, polygon_problems, wall_segments
 
 __all__ = ["WallMove", "ObjectWalls", "move_walls_to_objects"]
 
@@ -72,7 +72,7 @@ def move_walls_to_objects(floor: ArrayLike, footprints: ArrayLike, *, min_object
     Parameters
     ----------
     floor : (K, 2) float
-        Counter-clockwise Manhattan floor polygon.
+        Manhattan floor polygon, either orientation, no zero-length wall.
     footprints : (N, 4, 2) float
         Object rectangles seen from above, same units.
     min_objects : int
@@ -117,6 +117,7 @@ def move_walls_to_objects(floor: ArrayLike, footprints: ArrayLike, *, min_object
         k = int(np.argmax(depth))
         if depth[k] >= min_depth:
             behind.setdefault(int(wall[k]), []).append((float(depth[k]), int(j)))
+    outward = -wall_segments(poly).normal  # (K, 2); a Manhattan shift keeps every wall's direction
     out, moves = poly.copy(), []
     for wall, items in sorted(behind.items()):
         items.sort()
@@ -125,13 +126,11 @@ def move_walls_to_objects(floor: ArrayLike, footprints: ArrayLike, *, min_object
         i = int(np.argmax(ends - np.arange(len(d))))
         if ends[i] - i < int(min_objects):
             continue
-        a, b = out[wall], out[(wall + 1) % len(out)]
-        t = (b - a) / np.linalg.norm(b - a)
-        shift = float(d[i]) * np.array([t[1], -t[0]])  # outward normal of a counter-clockwise polygon
+        shift = float(d[i]) * outward[wall]
         cand = out.copy()
         cand[wall] += shift
         cand[(wall + 1) % len(out)] += shift
-        if not polygon_problems(cand):
+        if not polygon_problems(cand, ccw=False):  # either orientation; simple and Manhattan
             out = cand
             moves.append(WallMove(wall=wall, distance=float(d[i]),
                                   objects=tuple(sorted(j for _, j in items[i:ends[i]]))))

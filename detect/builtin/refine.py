@@ -302,6 +302,12 @@ class BoxRefiner:
         self._net = net.eval()
 
     @property
+    def network(self) -> Any:
+        """The torch module that reads the windows (eval mode); :mod:`detect.builtin.train_refine` goes on
+        training it with ``--init``."""
+        return self._net
+
+    @property
     def record(self) -> dict[str, Any]:
         """The JSON record next to the weights (``refine.pt`` -> ``refine.json``); ``{}`` when there is none."""
         p = self.weights.with_suffix(".json")

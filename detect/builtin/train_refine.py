@@ -163,7 +163,7 @@ def train(data: list[Path], val: Path, out: Path, *, rooms: int, val_rooms: int,
     print(f"samples: {len(tr['classes'])} training, {len(va['classes'])} validation ({gen_s:.0f} s)", file=sys.stderr)
     if len(tr["classes"]) == 0 or len(va["classes"]) == 0:
         raise ValueError("no objects to learn from: the rooms show no object of the detector's classes whole")
-    net = build_refiner(config) if start is None else start._net.train()
+    net = build_refiner(config) if start is None else start.network.train()
     opt = torch.optim.AdamW(net.parameters(), lr=lr, weight_decay=1e-4)
     n = len(tr["classes"])
     rng = np.random.default_rng(seed)

@@ -30,6 +30,13 @@ def test_agreeing_objects_move_the_wall_to_the_nearest_of_them():
     assert is_ccw(res.floor) and not polygon_problems(res.floor)
 
 
+def test_a_clockwise_room_moves_the_same_wall_out():
+    cw = ROOM[::-1].copy()  # its wall 1 runs from (3, 2) to (3, -1.5)
+    res = move_walls_to_objects(cw, feet([[3.05, 0.0], [3.10, 1.0], [3.13, -1.0]]))
+    assert [m.wall for m in res.moves] == [1] and math.isclose(res.moves[0].distance, 0.30, abs_tol=1e-9)
+    assert np.allclose(res.floor[[1, 2], 0], 3.30) and np.allclose(res.floor[[0, 3], 0], -2.0)
+
+
 @pytest.mark.parametrize("centers", [
     [[3.05, 0.0]],                      # one object: more often the object is too far than the wall too near
     [[3.05, 0.0], [3.5, 1.0]],          # two that disagree (0.30 and 0.75 m beyond)
