@@ -517,6 +517,31 @@ def _snap_walls(upright: np.ndarray, geom: Any, obj_mask: np.ndarray, prog: Prog
     return replace(geom, floor=snap.floor, ceiling_z=snap.ceiling_z)
 
 
+def drop_duplicates(objects: list, eo: list, width: int, height: int, camera_height: float,
+                    notes: list[str]) -> tuple[list, list]:
+    """Objects (``layout.sampler.DetectedObject``) without the copies of one object detected twice.
+
+    Each object is placed by its box fit at ``camera_height`` (:func:`layout.sampler.fit_boxes`, as the improved
+    sampler starts); of two of the same class whose footprints share half the smaller one's area, the lower-scored is
+    dropped (:func:`layout.duplicates.same_class_duplicates`) with its ``eo`` entry, and a note says which."""
+    from layout.duplicates import same_class_duplicates
+    from layout.sampler import fit_boxes, initialise_objects
+
+    if len(objects) < 2:
+        return objects, eo
+    centers, _ = fit_boxes(objects, initialise_objects(objects, width, height).centers, width, height,
+                           camera_height=camera_height)
+    dups = same_class_duplicates([o.cls for o in objects], [o.score for o in objects], centers[:, :2],
+                                 [o.yaw for o in objects], [o.size[:2] for o in objects])
+    for d in dups:
+        o, k = objects[d.dropped], objects[d.kept]
+        notes.append(f"dropped {o.cls} (score {o.score or 0.0:.2f}): it stands where {k.cls} (score "
+                     f"{k.score or 0.0:.2f}) stands ({d.share:.0%} of the smaller footprint), one object detected twice")
+    gone = {d.dropped for d in dups}
+    keep = [k for k in range(len(objects)) if k not in gone]
+    return [objects[k] for k in keep], [eo[k] for k in keep]
+
+
 def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | None = None) -> PipelineResult:
     """Run the whole pipeline on an RGB panorama.
 
@@ -680,6 +705,9 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
             if math.isfinite(choice.camera_height):
                 shared_height = choice.camera_height
 
+    if objects and options.sampler_mode != "paper":
+        cam = options.camera_height or (shared_height if shared_height is not None else h0)
+        objects, eo = drop_duplicates(objects, eo, W, H, cam, notes)
     with prog.stage("posterior", f"MAP sampling ({options.samples} samples)"):
         if options.sampler_mode == "paper":
             config = SamplerConfig(n_samples=options.samples)

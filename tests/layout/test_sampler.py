@@ -196,6 +196,58 @@ def test_repair_steps_aside_rather_than_sliding_out_of_an_arm():
     assert np.hypot(*(xy[0] - start)) < 0.15
 
 
+@pytest.mark.parametrize("mode", ["improved", "paper"])
+def test_repair_turns_a_plant_in_place_where_that_fits(mode):
+    """A 1 m plant stands by a reflex corner of an L-shaped room; at yaw 0 its square footprint's corner reaches 10 cm
+    past the corner, at 45 degrees the footprint fits. A plant has no yaw to keep: the improved repair turns it in
+    place (the least turn that fits) instead of moving it; the paper scheme's repair moves it, as before."""
+    _, labels, _, _, _ = synthetic(5)
+    floor = np.array([[-3.0, -2.0], [3.0, -2.0], [3.0, 2.0], [1.0, 2.0], [1.0, 3.5], [-3.0, 3.5]])
+    lik = surface_likelihood(observe_labels(labels, width=128), floor, 2.6, 1.6)
+    start = np.array([0.6, 1.6])
+    box = world_box_to_pano(np.r_[start, 0.5], (1.0, 1.0, 1.0), 0.0, W, W // 2, camera_height=1.6).extent
+    plant = DetectedObject("plant", box, (1.0, 1.0, 1.0), 0.0, symmetric=True)
+    cfg = SamplerConfig.improved() if mode == "improved" else SamplerConfig()
+    prob = _Problem(lik, [plant], orientation_likelihood(None, ["plant"]), cfg, W, W // 2)
+    assert not prob.object_ok(np.ones(1), start[None, None], np.zeros((1, 1)))[0, 0]
+    _, xy, yaw = prob.repair(1.0, start[None].copy(), np.zeros(1), grow_scale=False)
+    assert prob.object_ok(np.ones(1), xy[None], yaw[None])[0, 0]
+    if mode == "improved":
+        np.testing.assert_array_equal(xy[0], start)
+        turn = abs(math.degrees(math.remainder(float(yaw[0]), math.pi / 2)))
+        assert 5.0 < turn <= 45.0
+        # the least turn: one degree less does not fit
+        smaller = yaw[0] - math.copysign(math.radians(1.0), math.remainder(float(yaw[0]), math.pi / 2))
+        assert not prob.object_ok(np.ones(1), start[None, None], np.array([[smaller]]))[0, 0]
+    else:
+        assert yaw[0] == 0.0 and np.hypot(*(xy[0] - start)) > 0.05
+
+
+@pytest.mark.parametrize("mode", ["improved", "paper"])
+def test_repair_turns_a_plant_off_a_chair(mode):
+    """A 1 m plant's square footprint overlaps a chair's by 13 x 13 cm at yaw 0; turned by 45 degrees it is clear.
+    The improved repair turns the plant in place and moves nothing; the paper scheme's slides one of them."""
+    _, labels, _, _, _ = synthetic(5)
+    floor = np.array([[-3.0, -2.0], [4.0, -2.0], [4.0, 2.5], [-3.0, 2.5]])
+    lik = surface_likelihood(observe_labels(labels, width=128), floor, 2.6, 1.6)
+    start = np.array([[2.0, 0.0], [2.62, 0.62]])
+    dets = []
+    for (x, y), cls, size in zip(start, ("plant", "chair"), ((1.0, 1.0, 1.0), (0.5, 0.5, 0.9))):
+        box = world_box_to_pano(np.r_[x, y, size[2] / 2], size, 0.0, W, W // 2, camera_height=1.6).extent
+        dets.append(DetectedObject(cls, box, size, 0.0))
+    cfg = SamplerConfig.improved() if mode == "improved" else SamplerConfig()
+    prob = _Problem(lik, dets, orientation_likelihood(None, ["plant", "chair"]), cfg, W, W // 2)
+    assert pair_overlap_areas(start, np.zeros(2), prob.size2)[0, 1] > 0.01
+    _, xy, yaw = prob.repair(1.0, start.copy(), np.zeros(2), grow_scale=False)
+    assert pair_overlap_areas(xy, yaw, prob.size2)[0, 1] <= cfg.overlap_tol
+    assert prob.object_ok(np.ones(1), xy[None], yaw[None])[0].all()
+    if mode == "improved":
+        np.testing.assert_array_equal(xy, start)
+        assert yaw[1] == 0.0 and 5.0 < abs(math.degrees(yaw[0])) <= 45.0
+    else:
+        assert np.abs(xy - start).max() > 0.05 and np.all(yaw == 0.0)
+
+
 def test_impossible_scene_raises():
     pl, labels, dets, floor0, ceil0 = synthetic(6)
     lik = surface_likelihood(observe_labels(labels, width=128), floor0, ceil0, 1.6)
