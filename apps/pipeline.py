@@ -109,7 +109,8 @@ class RunOptions:
     objects : bool
         False: layout only.
     sampler_mode : str
-        ``"improved"`` (default) or ``"paper"`` (the paper's exact scheme).
+        ``"improved"`` (default) or ``"paper"`` (the paper's exact scheme). The improved mode also samples one
+        object detected twice once (:func:`drop_duplicates`).
     model_choice : str
         ``"box"`` (default): each object's model among its class's by how well it fits its box at the shared
         camera height, with the HOG distance as appearance cost and the room's walls as a soft limit

@@ -1458,8 +1458,8 @@ class _Problem:
 
     def _turn_apart(self, lam: float, xy: FloatArray, yaw: FloatArray, a: int, b: int) -> bool:
         """Improved scheme: of two overlapping objects, a rotationally symmetric one turned in place (the least turn
-        after which the two no longer overlap and it still fits the room); ``yaw`` is changed in place. False where
-        neither is symmetric or no turn separates them."""
+        after which it overlaps no object and still fits the room, so that a turn never trades one overlap for
+        another); ``yaw`` is changed in place. False where neither is symmetric or no turn clears it."""
         if self.cfg.mode != "improved":
             return False
         for j in (a, b):
@@ -1469,7 +1469,7 @@ class _Problem:
             cand = np.broadcast_to(yaw, (len(turns), self.n)).copy()
             cand[:, j] = turns
             fit &= pair_overlap_areas(np.broadcast_to(xy, (len(turns), self.n, 2)), cand,
-                                      self.size2)[:, a, b] <= self.cfg.overlap_tol
+                                      self.size2)[:, j].max(axis=-1) <= self.cfg.overlap_tol
             if np.any(fit):
                 yaw[j] = turns[int(np.argmax(fit))]
                 return True
@@ -1497,7 +1497,8 @@ class _Problem:
            camera (or, if it cannot, the nearer one towards it) by the
            smallest step that separates them. In the improved scheme a
            rotationally symmetric one of the two first turns in place, by
-           the least turn that separates them and keeps it in the room.
+           the least turn after which it overlaps nothing and stays in the
+           room.
 
         Steps 3-4 are repeated until nothing changes; the result may still
         violate a constraint (the sampler then looks for valid samples).

@@ -752,3 +752,30 @@ def test_yaw_moves_are_wide_while_the_seed_is_invalid():
         assert rec.scales == [pytest.approx(math.sqrt(expected))]
     with pytest.raises(ValueError, match="invalid_yaw_variance"):
         SamplerConfig(invalid_yaw_variance=0.0)
+
+
+def test_repair_never_turns_a_plant_onto_another_object():
+    """The turn that clears the plant of one chair would put it on a second chair: the plant is not turned (one of
+    them slides instead), so the repair cannot swap one overlap for another."""
+    _, labels, _, _, _ = synthetic(5)
+    floor = np.array([[-3.0, -2.0], [4.0, -2.0], [4.0, 2.5], [-3.0, 2.5]])
+    lik = surface_likelihood(observe_labels(labels, width=128), floor, 2.6, 1.6)
+    # chair 1 clips the plant's square corner; chair 2 sits where the turned plant's diamond tip would reach
+    start = np.array([[2.0, 0.0], [2.62, 0.62], [2.0, 0.86]])
+    dets = []
+    for (x, y), cls, size in zip(start, ("plant", "chair", "chair"), ((1.0, 1.0, 1.0), (0.5, 0.5, 0.9),
+                                                                       (0.5, 0.5, 0.9))):
+        box = world_box_to_pano(np.r_[x, y, size[2] / 2], size, 0.0, W, W // 2, camera_height=1.6).extent
+        dets.append(DetectedObject(cls, box, size, 0.0))
+    prob = _Problem(lik, dets, orientation_likelihood(None, ["plant", "chair", "chair"]), SamplerConfig.improved(),
+                    W, W // 2)
+    pair = pair_overlap_areas(start, np.zeros(3), prob.size2)
+    assert pair[0, 1] > 0.01 and pair[0, 2] == 0.0 and pair[1, 2] == 0.0
+    turns, fit = prob._turns_in_place(1.0, start[0], 0.0, 0)
+    cand = np.zeros((len(turns), 3))
+    cand[:, 0] = turns
+    areas = pair_overlap_areas(np.broadcast_to(start, (len(turns), 3, 2)), cand, prob.size2)
+    assert np.any(fit & (areas[:, 0, 1] <= 1e-4)) and not np.any(fit & (areas[:, 0].max(axis=-1) <= 1e-4))
+    _, xy, yaw = prob.repair(1.0, start.copy(), np.zeros(3), grow_scale=False)
+    assert yaw[0] == 0.0
+    assert pair_overlap_areas(xy, yaw, prob.size2)[np.triu_indices(3, 1)].max() <= 1e-4
