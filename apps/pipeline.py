@@ -537,10 +537,22 @@ def drop_duplicates(objects: list, eo: list, width: int, height: int, camera_hei
     for d in dups:
         o, k = objects[d.dropped], objects[d.kept]
         notes.append(f"dropped {o.cls} (score {o.score or 0.0:.2f}): it stands where {k.cls} (score "
-                     f"{k.score or 0.0:.2f}) stands ({d.share:.0%} of the smaller footprint), one object detected twice")
+                     f"{k.score or 0.0:.2f}) stands ({d.share:.0%} of the smaller footprint), "
+                     "one object detected twice")
     gone = {d.dropped for d in dups}
     keep = [k for k in range(len(objects)) if k not in gone]
     return [objects[k] for k in keep], [eo[k] for k in keep]
+
+
+def turned_to_input(objects, floor: np.ndarray, heading: float) -> tuple[list, np.ndarray]:
+    """Objects (``layout.scene.SceneObject``) and floor polygon ``(K, 2)`` of the wall-aligned frame the pipeline
+    computes in, turned into the input's world frame: about z by the rectification's ``heading`` (radians), centres
+    and yaws; boxes are left as they are (the caller maps them to input pixels)."""
+    from panogeom.rotation import rot_z
+
+    turn = rot_z(heading)
+    objs = [replace(o, center=turn @ o.center, yaw=o.yaw + heading) for o in objects]
+    return objs, np.asarray(floor) @ turn[:2, :2].T
 
 
 def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | None = None) -> PipelineResult:
@@ -759,15 +771,11 @@ def run_pipeline(image: np.ndarray, options: RunOptions, progress: Progress | No
     # the INPUT's centre column. We computed in the wall-aligned frame (walls on x/y), which is turned by the
     # rectification's heading h about z from it: p_world = Rz(h) p_walls; boxes go back to input pixels.
     heading = rect.heading if rect is not None else 0.0
-    turn = rot_z(heading)
-    objs = []
-    for o in scene.objects:
-        box = o.bbox_pano
-        if box is not None and rect is not None:
-            box = rect.box_to_input(box, W, H)
-        objs.append(replace(o, center=turn @ o.center, yaw=o.yaw + heading, bbox_pano=box))
-    floor = scene.floor @ turn[:2, :2].T
-    R = turn @ R
+    objs, floor = turned_to_input(scene.objects, scene.floor, heading)
+    if rect is not None:
+        objs = [o if o.bbox_pano is None else replace(o, bbox_pano=rect.box_to_input(o.bbox_pano, W, H))
+                for o in objs]
+    R = rot_z(heading) @ R
     labels_input = surf.labels if rect is None else rotate_pano(surf.labels, rect.rotation.T, interpolation="nearest")
     timing = dict(prog.timings)
     timing["total"] = prog.total()

@@ -92,13 +92,13 @@ def capture(argv: list[str]) -> int:
 
 def to_world(scene, final, heading: float):
     """``scene`` (the sampler's, in the wall-aligned frame) in the input's world frame, on the pipeline's final
-    scene ``final`` (as :func:`apps.pipeline.run_pipeline` turns it)."""
-    from panogeom.rotation import rot_z
+    scene ``final``: :func:`apps.pipeline.turned_to_input`, as the pipeline turns it (the boxes stay in the
+    rectified frame: scoring does not read them)."""
+    from apps.pipeline import turned_to_input
 
-    turn = rot_z(heading)
-    objs = tuple(replace(o, center=turn @ o.center, yaw=o.yaw + heading) for o in scene.objects)
-    return replace(final, floor=scene.floor @ turn[:2, :2].T, ceiling_z=scene.ceiling_z,
-                   camera_height=scene.camera_height, objects=objs, scale=scene.scale)
+    objs, floor = turned_to_input(scene.objects, scene.floor, heading)
+    return replace(final, floor=floor, ceiling_z=scene.ceiling_z, camera_height=scene.camera_height,
+                   objects=tuple(objs), scale=scene.scale)
 
 
 def _literal(text: str):
